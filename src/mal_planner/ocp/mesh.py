@@ -1,0 +1,137 @@
+"""Mesh layout, error estimate and ph refinement (Patterson, Hager & Rao 2015).
+
+Node ordering of a phase with segments of N_1..N_S LGR points: the collocation points of
+segment s occupy indices ``off_s .. off_s+N_s-1``; the non-collocated end of segment s is
+the first point of segment s+1 (state continuity by sharing), and the last node (index
+``Nc = sum N_s``) is the phase end.  Controls live on the ``Nc`` collocation nodes.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Callable
+from dataclasses import dataclass
+from functools import lru_cache
+
+import casadi as ca
+import numpy as np
+
+from .lgr import diff_matrix, integration_matrix, lagrange_matrix, lgr_nodes, lgr_weights, support_points
+from .problem import PhaseMesh
+
+
+@dataclass(frozen=True)
+class MeshLayout:
+    """Numeric data of one phase mesh, independent of the problem."""
+
+    mesh: PhaseMesh
+    tau: np.ndarray  # (Nk,) phase tau in [-1, 1] of all nodes
+    offsets: np.ndarray  # (S+1,) index of the first node of each segment, last = Nc
+    D: ca.DM  # (Nc, Nk) block differentiation matrix w.r.t. local segment tau
+    w: np.ndarray  # (Nc,) quadrature weights scaled to phase tau (sum = 2)
+    frac: np.ndarray  # (Nc,) segment length as a fraction of the phase, per collocation point
+
+    @property
+    def n_col(self) -> int:
+        return int(self.offsets[-1])
+
+    @property
+    def n_nodes(self) -> int:
+        return int(self.offsets[-1]) + 1
+
+
+@lru_cache(maxsize=256)
+def layout(mesh: PhaseMesh) -> MeshLayout:
+    """Build (once per mesh) the node positions and block matrices."""
+    degs = mesh.degrees
+    offsets = np.concatenate([[0], np.cumsum(degs)]).astype(int)
+    nc = int(offsets[-1])
+    tau = np.empty(nc + 1)
+    dmat = np.zeros((nc, nc + 1))
+    w = np.empty(nc)
+    frac = np.empty(nc)
+    for s, n in enumerate(degs):
+        a, b = mesh.breaks[s], mesh.breaks[s + 1]
+        o = offsets[s]
+        tau[o : o + n] = -1.0 + 2.0 * (a + (b - a) * (lgr_nodes(n) + 1.0) / 2.0)
+        dmat[o : o + n, o : o + n + 1] = diff_matrix(n)
+        w[o : o + n] = (b - a) * lgr_weights(n)
+        frac[o : o + n] = b - a
+    tau[nc] = 1.0
+    return MeshLayout(mesh, tau, offsets, ca.sparsify(ca.DM(dmat)), w, frac)
+
+
+@lru_cache(maxsize=64)
+def _estimate_matrices(n: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Interpolation of a degree-N segment onto M = N+1 LGR points (+end) and I_M."""
+    m = n + 1
+    tm = lgr_nodes(m)
+    lx = lagrange_matrix(support_points(n), np.append(tm, 1.0))  # (M+1, N+1)
+    lu = np.ones((m, 1)) if n == 1 else lagrange_matrix(lgr_nodes(n), tm)  # (M, N)
+    return lx, lu, integration_matrix(m)
+
+
+Evaluator = Callable[[np.ndarray, np.ndarray, np.ndarray], np.ndarray]
+
+
+def estimate_errors(
+    lay: MeshLayout, t0: float, tf: float, x: np.ndarray, u: np.ndarray, f_eval: Evaluator
+) -> np.ndarray:
+    """Relative state error per segment.
+
+    The state polynomial is sampled at M = N+1 LGR points; the dynamics there (with the
+    degree N-1 control interpolant) are integrated from the segment start with the
+    M-point Radau integration matrix.  Error = max over points/components of
+    ``|x_quad - x_poly| / (1 + max |x_poly|)``.  ``x`` is (nx, Nk), ``u`` (nu, Nc);
+    ``f_eval(X, U, T)`` evaluates the dynamics column-wise in one call.
+    """
+    mesh = lay.mesh
+    xs, us, ts, info = [], [], [], []
+    for s, n in enumerate(mesh.degrees):
+        o = lay.offsets[s]
+        lx, lu, _ = _estimate_matrices(n)
+        xp = x[:, o : o + n + 1] @ lx.T  # (nx, M+1)
+        up = u[:, o : o + n] @ lu.T  # (nu, M)
+        a, b = mesh.breaks[s], mesh.breaks[s + 1]
+        tau_loc = lgr_nodes(n + 1)
+        tph = -1.0 + 2.0 * (a + (b - a) * (tau_loc + 1.0) / 2.0)
+        ts.append(t0 + (tf - t0) * (tph + 1.0) / 2.0)
+        xs.append(xp)
+        us.append(up)
+        info.append((n, b - a))
+    fx = f_eval(np.hstack([xp[:, :-1] for xp in xs]), np.hstack(us), np.concatenate(ts))
+    errs = np.empty(mesh.n_segments)
+    col = 0
+    for s, (n, h) in enumerate(info):
+        m = n + 1
+        _, _, imat = _estimate_matrices(n)
+        xp = xs[s]
+        f = fx[:, col : col + m]
+        col += m
+        xq = xp[:, :1] + (tf - t0) / 2.0 * h * (f @ imat.T)  # (nx, M) at points 2..M+1
+        scale = 1.0 + np.max(np.abs(xp), axis=1, keepdims=True)
+        errs[s] = float(np.max(np.abs(xq - xp[:, 1:]) / scale)) if xp.size else 0.0
+    return errs
+
+
+def refine(mesh: PhaseMesh, errors: np.ndarray, tol: float, n_min: int, n_max: int) -> PhaseMesh:
+    """One ph step: raise the degree by P = ceil(log(e/tol)/log N), or split when > n_max."""
+    breaks: list[float] = [mesh.breaks[0]]
+    degs: list[int] = []
+    for s, n in enumerate(mesh.degrees):
+        a, b = mesh.breaks[s], mesh.breaks[s + 1]
+        e = float(errors[s])
+        if not e > tol:
+            breaks.append(b)
+            degs.append(n)
+            continue
+        p = max(1, math.ceil(math.log(e / tol) / math.log(max(n, 2))))
+        if n + p <= n_max:
+            breaks.append(b)
+            degs.append(n + p)
+        else:
+            nseg = max(math.ceil((n + p) / n_min), 2)
+            breaks.extend(a + (b - a) * k / nseg for k in range(1, nseg + 1))
+            degs.extend([n_min] * nseg)
+    breaks[-1] = 1.0
+    return PhaseMesh(tuple(breaks), tuple(degs))

@@ -1,0 +1,407 @@
+"""Scenario files (YAML): validated on load, converted to the planner's units (nm, s, rad).
+
+The file gives angles in degrees; everything returned by :func:`load_scenario` is in radians. Any
+problem is reported as a :class:`ScenarioError` whose message is one line naming the file, the field
+and the reason.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, replace
+from pathlib import Path
+from typing import Annotated, Any, Literal
+
+import numpy as np
+import yaml
+from pydantic import BaseModel, ConfigDict, Field, ValidationError, field_validator, model_validator
+
+from mal_planner.dynamics import DYNAMICS_MODELS, ControlLimits, DynamicsModel, make_dynamics
+from mal_planner.obstacles import Gate, Superquadric, wall_with_hole
+
+AXIS_INDEX = {"x": 0, "y": 1, "z": 2}
+
+
+class ScenarioError(ValueError):
+    """A scenario that cannot be used; ``str()`` is a single line: ``file: field: reason``."""
+
+    def __init__(self, source: str, field: str, reason: str) -> None:
+        self.source, self.field, self.reason = source, field, reason
+        super().__init__(f"{source}: {field}: {reason}" if field else f"{source}: {reason}")
+
+
+Vec3 = tuple[float, float, float]
+Interval = tuple[float, float]
+
+
+class _Strict(BaseModel):
+    model_config = ConfigDict(extra="forbid", frozen=True)
+
+
+def _check_interval(value: Interval) -> Interval:
+    if not value[0] < value[1]:
+        raise ValueError(f"lower bound {value[0]} must be below upper bound {value[1]}")
+    return value
+
+
+class LimitsConfig(_Strict):
+    bank_angle_deg: float = Field(45.0, gt=0.0, lt=90.0)
+    n_h: Interval = (-2.0, 2.0)
+    n_v: Interval = (0.0, 2.0)
+
+    _intervals = field_validator("n_h", "n_v")(_check_interval)
+
+    @field_validator("n_v")
+    @classmethod
+    def _nonnegative_nv(cls, value: Interval) -> Interval:
+        if value[0] < 0.0:
+            raise ValueError("the vertical load factor must be >= 0 (the bank angle is atan(n_h/n_v))")
+        return value
+
+    def to_limits(self) -> ControlLimits:
+        return ControlLimits(n_h=self.n_h, n_v=self.n_v, bank_angle_max=float(np.radians(self.bank_angle_deg)))
+
+
+class AircraftConfig(_Strict):
+    callsign: str = Field(min_length=1, max_length=16, pattern=r"^[A-Za-z0-9_]+$")
+    position: Vec3
+    """Initial x, y, z in nm."""
+    flight_path_angle_deg: float = Field(ge=-30.0, le=30.0)
+    heading_deg: float = Field(ge=-360.0, le=360.0)
+    speed: float = Field(gt=0.0, le=1.0)
+    """Constant airspeed in nm/s."""
+    model: str = "point_mass"
+    wake_category: Literal["L", "M", "H", "J"] | None = None
+    landing_time: float | None = Field(None, gt=0.0)
+    """Fixed landing time in s (as in the thesis); omitted: taken from the sequencer."""
+    limits: LimitsConfig | None = None
+    """Per-aircraft limits; omitted: the scenario's limits."""
+
+    @field_validator("model")
+    @classmethod
+    def _known_model(cls, value: str) -> str:
+        if value not in DYNAMICS_MODELS:
+            raise ValueError(f"unknown dynamics model {value!r} (known: {', '.join(sorted(DYNAMICS_MODELS))})")
+        return value
+
+
+class RunwayConfig(_Strict):
+    position: Vec3 = (0.0, 0.0, 0.0)
+    flight_path_angle_deg: float = Field(0.0, ge=-10.0, le=10.0)
+    heading_deg: float = -90.0
+
+
+class AirspaceConfig(_Strict):
+    x: Interval
+    y: Interval
+    z: Interval
+
+    _intervals = field_validator("x", "y", "z")(_check_interval)
+
+
+def _is_even(value: int) -> int:
+    if value < 2 or value % 2:
+        raise ValueError(f"the exponent p must be an even integer >= 2, got {value}")
+    return value
+
+
+class SuperquadricConfig(_Strict):
+    type: Literal["superquadric"] = "superquadric"
+    name: str
+    center: Vec3
+    semi_axes: Vec3
+    p: int = 2
+
+    _even = field_validator("p")(_is_even)
+
+    @field_validator("semi_axes")
+    @classmethod
+    def _positive(cls, value: Vec3) -> Vec3:
+        if min(value) <= 0.0:
+            raise ValueError("semi-axes must all be > 0")
+        return value
+
+
+class GateConfig(_Strict):
+    name: str = "gate"
+    axis: Literal["x", "y", "z"] = "y"
+    position: float
+    direction: Literal[-1, 1] = -1
+    """Sign of the travel along ``axis`` when passing the gate."""
+    bounds: dict[Literal["x", "y", "z"], Interval]
+    """The hole's bounds along the two other axes."""
+    flight_path_angle_deg: float = 0.0
+    heading_deg: float = -90.0
+
+    @model_validator(mode="after")
+    def _two_other_axes(self) -> GateConfig:
+        expected = set("xyz") - {self.axis}
+        if set(self.bounds) != expected:
+            raise ValueError(f"bounds must give exactly the axes {sorted(expected)}")
+        for key, value in self.bounds.items():
+            if not value[0] < value[1]:
+                raise ValueError(f"bounds.{key}: lower bound must be below upper bound")
+        return self
+
+    def to_gate(self) -> Gate:
+        axis = AXIS_INDEX[self.axis]
+        others = [a for a in "xyz" if a != self.axis]
+        return Gate(
+            name=self.name,
+            axis=axis,
+            position=self.position,
+            direction=self.direction,
+            bounds=(tuple(self.bounds[others[0]]), tuple(self.bounds[others[1]])),
+            flight_path_angle=float(np.radians(self.flight_path_angle_deg)),
+            heading=float(np.radians(self.heading_deg)),
+        )
+
+
+class WallConfig(_Strict):
+    """A thin wall with a rectangular hole; expands to four superquadrics and a gate."""
+
+    type: Literal["wall_with_hole"]
+    name: str = "wall"
+    axis: Literal["x", "y", "z"] = "y"
+    position: float
+    """Coordinate of the wall's gate face (the thesis: y = 3, the wall spans [3, 3.001])."""
+    thickness: float = Field(gt=0.0)
+    span: dict[Literal["x", "y", "z"], Interval]
+    hole: dict[Literal["x", "y", "z"], Interval]
+    p: int = 50
+    direction: Literal[-1, 1] = -1
+    flight_path_angle_deg: float = 0.0
+    heading_deg: float = -90.0
+
+    _even = field_validator("p")(_is_even)
+
+    @model_validator(mode="after")
+    def _consistent(self) -> WallConfig:
+        expected = set("xyz") - {self.axis}
+        for label, value in (("span", self.span), ("hole", self.hole)):
+            if set(value) != expected:
+                raise ValueError(f"{label} must give exactly the axes {sorted(expected)}")
+        for a in sorted(expected):
+            (s0, s1), (h0, h1) = self.span[a], self.hole[a]
+            if not s0 < h0 < h1 < s1:
+                raise ValueError(f"hole.{a} {list(self.hole[a])} must lie strictly inside span.{a} {[s0, s1]}")
+        return self
+
+    def expand(self) -> tuple[list[Superquadric], GateConfig]:
+        others = [a for a in "xyz" if a != self.axis]
+        pieces = wall_with_hole(
+            self.name,
+            AXIS_INDEX[self.axis],
+            self.position,
+            self.thickness,
+            (self.span[others[0]], self.span[others[1]]),
+            (self.hole[others[0]], self.hole[others[1]]),
+            self.p,
+        )
+        gate = GateConfig(
+            name=f"{self.name}-hole",
+            axis=self.axis,
+            position=self.position,
+            direction=self.direction,
+            bounds=dict(self.hole),
+            flight_path_angle_deg=self.flight_path_angle_deg,
+            heading_deg=self.heading_deg,
+        )
+        return pieces, gate
+
+
+ObstacleConfig = Annotated[SuperquadricConfig | WallConfig, Field(discriminator="type")]
+
+
+class SeparationConfig(_Strict):
+    distance_nm: float = Field(0.25, gt=0.0)
+    """Minimum distance between any two airborne aircraft."""
+    landing_spacing_s: float = Field(15.0, gt=0.0)
+    """Minimum time between successive landings."""
+    max_landing_spacing_s: float = Field(30.0, gt=0.0)
+    """Largest time between successive landings the sequencer aims for."""
+
+    @model_validator(mode="after")
+    def _ordered(self) -> SeparationConfig:
+        if self.max_landing_spacing_s <= self.landing_spacing_s:
+            raise ValueError("max_landing_spacing_s must exceed landing_spacing_s")
+        return self
+
+
+class ScenarioConfig(_Strict):
+    """The YAML file's schema."""
+
+    name: str
+    description: str = ""
+    gravity: float = Field(0.0052952, gt=0.0)
+    """g in nm/s^2."""
+    runway: RunwayConfig = RunwayConfig()
+    airspace: AirspaceConfig
+    aircraft: list[AircraftConfig] = Field(min_length=1)
+    obstacles: list[ObstacleConfig] = []
+    gates: list[GateConfig] = []
+    separation: SeparationConfig = SeparationConfig()
+    limits: LimitsConfig = LimitsConfig()
+
+    @model_validator(mode="after")
+    def _unique_callsigns(self) -> ScenarioConfig:
+        seen: set[str] = set()
+        for i, ac in enumerate(self.aircraft):
+            if ac.callsign in seen:
+                raise ValueError(f"aircraft[{i}].callsign: duplicate callsign {ac.callsign!r}")
+            seen.add(ac.callsign)
+        return self
+
+
+@dataclass(frozen=True)
+class Aircraft:
+    """One aircraft in planner units: state0 = (x, y, z, gamma, heading) in nm and rad."""
+
+    callsign: str
+    state0: np.ndarray
+    dynamics: DynamicsModel
+    limits: ControlLimits
+    wake_category: str | None = None
+    landing_time: float | None = None
+
+    @property
+    def speed(self) -> float:
+        return self.dynamics.speed
+
+    @property
+    def position(self) -> np.ndarray:
+        return self.state0[:3]
+
+
+@dataclass(frozen=True)
+class Scenario:
+    """A validated scenario in planner units (nm, s, rad)."""
+
+    name: str
+    description: str
+    aircraft: tuple[Aircraft, ...]
+    runway_state: np.ndarray
+    """(x, y, z, gamma, heading) at touchdown."""
+    airspace: np.ndarray
+    """(3, 2) array of [min, max] per axis."""
+    obstacles: tuple[Superquadric, ...]
+    gates: tuple[Gate, ...]
+    separation_nm: float
+    landing_spacing_s: float
+    max_landing_spacing_s: float
+    gravity: float
+    config: ScenarioConfig
+    source: str = "<scenario>"
+
+    def aircraft_by_callsign(self, callsign: str) -> Aircraft:
+        for ac in self.aircraft:
+            if ac.callsign == callsign:
+                return ac
+        raise KeyError(callsign)
+
+    def in_airspace(self, points: np.ndarray, tol: float = 0.0) -> np.ndarray:
+        pts = np.asarray(points, dtype=float)
+        return np.all((pts >= self.airspace[:, 0] - tol) & (pts <= self.airspace[:, 1] + tol), axis=-1)
+
+    def collides(self, points: np.ndarray) -> np.ndarray:
+        """Exact containment test against every obstacle (True = inside some obstacle)."""
+        pts = np.asarray(points, dtype=float)
+        hit = np.zeros(pts.shape[:-1], dtype=bool)
+        for ob in self.obstacles:
+            hit |= ob.contains(pts)
+        return hit
+
+    def with_initial_states(self, states: dict[str, np.ndarray]) -> Scenario:
+        """A copy with some aircraft's initial states replaced (e.g. from radar); others unchanged."""
+        new = tuple(
+            Aircraft(a.callsign, np.asarray(states[a.callsign], float), a.dynamics, a.limits, a.wake_category,
+                     a.landing_time) if a.callsign in states else a
+            for a in self.aircraft
+        )
+        return replace(self, aircraft=new)
+
+
+def _format_location(loc: tuple[Any, ...]) -> str:
+    out = ""
+    for part in loc:
+        if isinstance(part, int):
+            out += f"[{part}]"
+        elif part in ("superquadric", "wall_with_hole"):
+            continue  # pydantic's discriminator tag, not a field of the file
+        else:
+            out += f".{part}" if out else str(part)
+    return out
+
+
+def build_scenario(config: ScenarioConfig, source: str = "<scenario>") -> Scenario:
+    """Convert a validated config to planner units and check the geometry (raises ScenarioError)."""
+    obstacles: list[Superquadric] = []
+    gates = [g.to_gate() for g in config.gates]
+    for spec in config.obstacles:
+        if isinstance(spec, WallConfig):
+            pieces, gate = spec.expand()
+            obstacles.extend(pieces)
+            gates.append(gate.to_gate())
+        else:
+            obstacles.append(Superquadric(spec.name, spec.center, spec.semi_axes, spec.p))
+    airspace = np.array([config.airspace.x, config.airspace.y, config.airspace.z], dtype=float)
+    aircraft = []
+    for i, ac in enumerate(config.aircraft):
+        state0 = np.array([*ac.position, np.radians(ac.flight_path_angle_deg), np.radians(ac.heading_deg)])
+        dyn = make_dynamics(ac.model, ac.speed, gravity=config.gravity)
+        limits = ac.limits.to_limits() if ac.limits else (
+            config.limits.to_limits() if "limits" in config.model_fields_set else dyn.default_limits)
+        aircraft.append(Aircraft(ac.callsign, state0, dyn, limits, ac.wake_category, ac.landing_time))
+        where = f"aircraft[{i}].position"
+        if not np.all((state0[:3] >= airspace[:, 0]) & (state0[:3] <= airspace[:, 1])):
+            raise ScenarioError(source, where, f"{list(ac.position)} is outside the airspace")
+        for ob in obstacles:
+            if ob.contains(state0[:3]):
+                raise ScenarioError(source, where, f"{list(ac.position)} is inside obstacle {ob.name!r}")
+    runway = np.array([*config.runway.position, np.radians(config.runway.flight_path_angle_deg),
+                       np.radians(config.runway.heading_deg)])
+    if not np.all((runway[:3] >= airspace[:, 0]) & (runway[:3] <= airspace[:, 1])):
+        raise ScenarioError(source, "runway.position", "is outside the airspace")
+    return Scenario(
+        name=config.name,
+        description=config.description,
+        aircraft=tuple(aircraft),
+        runway_state=runway,
+        airspace=airspace,
+        obstacles=tuple(obstacles),
+        gates=tuple(gates),
+        separation_nm=config.separation.distance_nm,
+        landing_spacing_s=config.separation.landing_spacing_s,
+        max_landing_spacing_s=config.separation.max_landing_spacing_s,
+        gravity=config.gravity,
+        config=config,
+        source=source,
+    )
+
+
+def parse_scenario(data: Any, source: str = "<scenario>") -> Scenario:
+    """Validate an already-parsed mapping (e.g. from YAML) and build the scenario."""
+    if not isinstance(data, dict):
+        raise ScenarioError(source, "", "the top level must be a mapping")
+    try:
+        config = ScenarioConfig.model_validate(data)
+    except ValidationError as exc:
+        err = exc.errors()[0]
+        msg = err["msg"].removeprefix("Value error, ")
+        raise ScenarioError(source, _format_location(err["loc"]), msg) from None
+    return build_scenario(config, source)
+
+
+def load_scenario(path: str | Path) -> Scenario:
+    """Read and validate a scenario YAML file."""
+    source = str(path)
+    try:
+        text = Path(path).read_text(encoding="utf-8")
+    except OSError as exc:
+        raise ScenarioError(source, "", f"cannot read file ({exc.strerror or exc})") from None
+    try:
+        data = yaml.safe_load(text)
+    except yaml.YAMLError as exc:
+        mark = getattr(exc, "problem_mark", None)
+        where = f"line {mark.line + 1}" if mark is not None else ""
+        raise ScenarioError(source, where, f"invalid YAML ({getattr(exc, 'problem', None) or exc})") from None
+    return parse_scenario(data, source)

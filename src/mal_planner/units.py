@@ -1,0 +1,52 @@
+"""Unit and frame conversions between the planner (nm, s, rad) and ROS topics (SI, ENU).
+
+The planner frame is the runway frame of the thesis: x to the east, y to the north, z up, origin at
+the runway threshold. It is already an ENU frame, so the ROS boundary only scales lengths and speeds.
+Headings are mathematical angles from +x, counter-clockwise, the same convention as ENU yaw (REP 103).
+This is the only place where these factors are written.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+METRES_PER_NM: float = 1852.0
+"""International nautical mile in metres."""
+
+PLANNER_FRAME = "runway"
+
+
+def nm_to_m(value):
+    """Nautical miles (scalar or array) to metres."""
+    return np.asarray(value, dtype=float) * METRES_PER_NM if not np.isscalar(value) else value * METRES_PER_NM
+
+
+def m_to_nm(value):
+    """Metres (scalar or array) to nautical miles."""
+    return np.asarray(value, dtype=float) / METRES_PER_NM if not np.isscalar(value) else value / METRES_PER_NM
+
+
+def nm_per_s_to_m_per_s(value: float) -> float:
+    return value * METRES_PER_NM
+
+
+def m_per_s_to_nm_per_s(value: float) -> float:
+    return value / METRES_PER_NM
+
+
+def deg(value_rad):
+    """Radians to degrees."""
+    return np.degrees(value_rad)
+
+
+def rad(value_deg):
+    """Degrees to radians."""
+    return np.radians(value_deg)
+
+
+def wrap_angle(angle: float) -> float:
+    """Wrap an angle to (-pi, pi]."""
+    wrapped = math.remainder(angle, 2.0 * math.pi)
+    return math.pi if wrapped == -math.pi else wrapped
