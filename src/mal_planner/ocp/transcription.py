@@ -1,0 +1,271 @@
+"""LGR transcription of a :class:`Problem` on fixed phase meshes into one CasADi/IPOPT NLP.
+
+Per phase the decision vector holds the (scaled) states at all ``Nk`` nodes, the (scaled)
+controls at the ``Nc`` collocation nodes, then ``t0`` and ``tf``.  With
+``t = t0 + (tf - t0)(tau + 1)/2`` and a segment spanning the fraction ``h`` of the phase,
+the collocation constraint of each segment is ``D X = (tf - t0)/2 * h * f``; it is built
+for all segments at once with a block-sparse D and one mapped dynamics call, so the graph
+contains no per-node Python structure.
+
+Path constraints are enforced at every collocation node and at the phase end point; the
+end point uses the control of the last collocation node (Radau has no control there).
+This keeps e.g. altitude limits valid at phase boundaries where linkages join phases.
+"""
+
+from __future__ import annotations
+
+import time
+from collections.abc import Sequence
+from dataclasses import dataclass
+from typing import Any, Protocol
+
+import casadi as ca
+import numpy as np
+
+from .mesh import MeshLayout, layout
+from .problem import Endpoint, Endpoints, Phase, PhaseGuess, PhaseMesh, Problem
+
+
+class GuessSource(Protocol):
+    """Anything that can be sampled like a previous solution (used for warm starts)."""
+
+    def phase_times(self, phase: int) -> tuple[float, float]: ...
+
+    def interpolate(self, phase: int, t: np.ndarray) -> tuple[np.ndarray, np.ndarray]: ...
+
+
+def _col(value: object) -> ca.SX:
+    if isinstance(value, list | tuple):
+        return ca.vertcat(*value) if value else ca.SX(0, 1)
+    return ca.SX(value) if not isinstance(value, ca.SX) else value
+
+
+def phase_function(phase: Phase, n_params: int) -> ca.Function:
+    """``(x, u, t, p) -> (xdot, lagrange, path)`` as one SX Function, built once per phase."""
+    x = ca.SX.sym("x", phase.nx)
+    u = ca.SX.sym("u", phase.nu)
+    t = ca.SX.sym("t")
+    p = ca.SX.sym("p", n_params)
+    xdot = _col(phase.dynamics(x, u, t, p))
+    if xdot.shape != (phase.nx, 1):
+        raise ValueError(f"phase {phase.name!r}: dynamics must return {phase.nx} values, got {xdot.shape}")
+    lag = _col(phase.lagrange(x, u, t, p)) if phase.lagrange else ca.SX(0)
+    path = _col(phase.path(x, u, t, p)) if phase.path else ca.SX(0, 1)
+    return ca.Function(
+        f"{phase.name}_f", [x, u, t, p], [xdot, lag, path], ["x", "u", "t", "p"], ["f", "l", "c"]
+    )
+
+
+def _bounds(values: Sequence[float] | float | None, n: int, default: float) -> np.ndarray:
+    if values is None:
+        return np.full(n, default)
+    return np.broadcast_to(np.asarray(values, dtype=float).reshape(-1), (n,)).copy()
+
+
+@dataclass
+class _PhaseSlots:
+    layout: MeshLayout
+    x: slice
+    u: slice
+    t0: int
+    tf: int
+    sx: np.ndarray
+    su: np.ndarray
+
+
+@dataclass
+class NLPResult:
+    w: np.ndarray
+    objective: float
+    status: str
+    success: bool
+    iterations: int
+    solve_time: float
+    lam_g: np.ndarray
+
+
+class Transcription:
+    """The NLP of ``problem`` on ``meshes``; build once, then :meth:`solve` many times."""
+
+    def __init__(
+        self,
+        problem: Problem,
+        meshes: Sequence[PhaseMesh],
+        funcs: Sequence[ca.Function],
+        solver_options: dict[str, Any],
+    ) -> None:
+        t_start = time.perf_counter()
+        self.problem = problem
+        self.meshes = tuple(meshes)
+        p = ca.SX.sym("p", problem.n_params)
+        w_parts: list[ca.SX] = []
+        lbw: list[np.ndarray] = []
+        ubw: list[np.ndarray] = []
+        g_parts: list[ca.SX] = []
+        lbg: list[np.ndarray] = []
+        ubg: list[np.ndarray] = []
+        endpoints: list[Endpoint] = []
+        qs: list[ca.SX] = []
+        self.slots: list[_PhaseSlots] = []
+        nw = 0
+        cost = ca.SX(0)
+        for ph, mesh, fun in zip(problem.phases, self.meshes, funcs, strict=True):
+            lay = layout(mesh)
+            nx, nu, nk, nc = ph.nx, ph.nu, lay.n_nodes, lay.n_col
+            b = ph.bounds()
+            sx, su = ph.scales()
+            z = ca.SX.sym(f"{ph.name}_x", nx, nk)
+            v = ca.SX.sym(f"{ph.name}_u", nu, nc)
+            t0 = ca.SX.sym(f"{ph.name}_t0")
+            tf = ca.SX.sym(f"{ph.name}_tf")
+            w_parts += [ca.vec(z), ca.vec(v), t0, tf]
+            self.slots.append(
+                _PhaseSlots(
+                    lay,
+                    slice(nw, nw + nx * nk),
+                    slice(nw + nx * nk, nw + nx * nk + nu * nc),
+                    nw + nx * nk + nu * nc,
+                    nw + nx * nk + nu * nc + 1,
+                    sx,
+                    su,
+                )
+            )
+            nw += nx * nk + nu * nc + 2
+
+            xlb = np.tile((b["x_lb"] / sx)[:, None], (1, nk))
+            xub = np.tile((b["x_ub"] / sx)[:, None], (1, nk))
+            xlb[:, 0], xub[:, 0] = b["x0_lb"] / sx, b["x0_ub"] / sx
+            xlb[:, -1], xub[:, -1] = b["xf_lb"] / sx, b["xf_ub"] / sx
+            lbw += [xlb.ravel(order="F"), np.tile(b["u_lb"] / su, nc), [ph.t0_bounds[0]], [ph.tf_bounds[0]]]
+            ubw += [xub.ravel(order="F"), np.tile(b["u_ub"] / su, nc), [ph.t0_bounds[1]], [ph.tf_bounds[1]]]
+
+            xs = ca.mtimes(ca.diag(ca.DM(sx)), z)
+            us = ca.mtimes(ca.diag(ca.DM(su)), v)
+            tn = t0 + (tf - t0) * ca.DM((lay.tau + 1.0) / 2.0).T
+            u_ext = ca.horzcat(us, us[:, nc - 1]) if nu else ca.SX(0, nk)
+            f_all, l_all, c_all = fun.map(nk)(xs, u_ext, tn, p)
+            dt2 = (tf - t0) / 2.0
+            defect = ca.mtimes(z, lay.D.T) - dt2 * (
+                ca.mtimes(ca.diag(ca.DM(1.0 / sx)), f_all[:, :nc]) * ca.repmat(ca.DM(lay.frac).T, nx, 1)
+            )
+            g_parts.append(ca.vec(defect))
+            lbg.append(np.zeros(nx * nc))
+            ubg.append(np.zeros(nx * nc))
+            q = dt2 * ca.mtimes(l_all[:, :nc], ca.DM(lay.w))
+            npath = fun.size1_out(2)
+            if npath:
+                g_parts.append(ca.vec(c_all))
+                lbg.append(np.tile(_bounds(ph.path_lb, npath, -np.inf), nk))
+                ubg.append(np.tile(_bounds(ph.path_ub, npath, np.inf), nk))
+            g_parts.append(tf - t0)
+            lbg.append(np.array([ph.min_duration]))
+            ubg.append(np.array([ph.max_duration]))
+            endpoints.append(Endpoint(t0, tf, xs[:, 0], xs[:, nk - 1], q))
+            qs.append(q)
+            if problem.lagrange_in_cost and ph.lagrange is not None:
+                cost = cost + q
+
+        ends = Endpoints(endpoints, [ph.name for ph in problem.phases])
+        if problem.mayer is not None:
+            cost = cost + _col(problem.mayer(ends, p))
+        if problem.events is not None:
+            ev = _col(problem.events(ends, p))
+            g_parts.append(ev)
+            lbg.append(_bounds(problem.events_lb, ev.numel(), -np.inf))
+            ubg.append(_bounds(problem.events_ub, ev.numel(), np.inf))
+        for lk in problem.linkages:
+            ia, ib = problem.phase_index(lk.phase_a), problem.phase_index(lk.phase_b)
+            pa, pb = problem.phases[ia], problem.phases[ib]
+            ea, eb = ends[ia], ends[ib]
+            rows = [
+                ea.xf[list(pa.states).index(sa)] - eb.x0[list(pb.states).index(sb)] for sa, sb in lk.pairs
+            ]
+            if lk.time:
+                rows.append(ea.tf - eb.t0)
+            if rows:
+                g_parts.append(ca.vertcat(*rows))
+                lbg.append(np.zeros(len(rows)))
+                ubg.append(np.zeros(len(rows)))
+
+        self.n_w = nw
+        self.lbw = np.concatenate([np.asarray(a, dtype=float) for a in lbw])
+        self.ubw = np.concatenate([np.asarray(a, dtype=float) for a in ubw])
+        self.lbg = np.concatenate(lbg)
+        self.ubg = np.concatenate(ubg)
+        w = ca.vertcat(*w_parts)
+        nlp = {"x": w, "p": p, "f": cost, "g": ca.vertcat(*g_parts)}
+        self.integrals = ca.Function("integrals", [w, p], [ca.vertcat(*qs)])
+        self.solver = ca.nlpsol("ocp", "ipopt", nlp, solver_options)
+        self.build_time = time.perf_counter() - t_start
+
+    # ------------------------------------------------------------------ guesses
+    def initial_guess(self, guesses: Sequence[PhaseGuess | None] | GuessSource | None) -> np.ndarray:
+        """Decision vector from per-phase samples (linear interp.) or a previous solution."""
+        w0 = np.zeros(self.n_w)
+        for i, (ph, sl) in enumerate(zip(self.problem.phases, self.slots, strict=True)):
+            lay = sl.layout
+            if guesses is not None and hasattr(guesses, "interpolate"):
+                t0, tf = guesses.phase_times(i)  # type: ignore[union-attr]
+                tn = t0 + (tf - t0) * (lay.tau + 1.0) / 2.0
+                x, u = guesses.interpolate(i, tn)  # type: ignore[union-attr]
+                x, u = x.T, u[: lay.n_col].T
+            else:
+                g = None if guesses is None else guesses[i]  # type: ignore[index]
+                g = g if g is not None else ph.guess
+                t0, tf, x, u = _sample_guess(ph, g, lay)
+            w0[sl.x] = (x / sl.sx[:, None]).ravel(order="F")
+            w0[sl.u] = (u / sl.su[:, None]).ravel(order="F")
+            w0[sl.t0], w0[sl.tf] = t0, tf
+        return w0
+
+    # ------------------------------------------------------------------ solve
+    def solve(self, params: np.ndarray, w0: np.ndarray) -> NLPResult:
+        t_start = time.perf_counter()
+        res = self.solver(x0=w0, p=params, lbx=self.lbw, ubx=self.ubw, lbg=self.lbg, ubg=self.ubg)
+        elapsed = time.perf_counter() - t_start
+        st = self.solver.stats()
+        return NLPResult(
+            w=np.asarray(res["x"]).reshape(-1),
+            objective=float(res["f"]),
+            status=str(st.get("return_status", "")),
+            success=bool(st.get("success", False)),
+            iterations=int(st.get("iter_count", -1)),
+            solve_time=elapsed,
+            lam_g=np.asarray(res["lam_g"]).reshape(-1),
+        )
+
+    def unpack(self, w: np.ndarray, phase: int) -> tuple[float, float, np.ndarray, np.ndarray]:
+        """``(t0, tf, X (nx, Nk), U (nu, Nc))`` in physical units."""
+        ph, sl = self.problem.phases[phase], self.slots[phase]
+        nk, nc = sl.layout.n_nodes, sl.layout.n_col
+        x = w[sl.x].reshape((ph.nx, nk), order="F") * sl.sx[:, None]
+        u = w[sl.u].reshape((ph.nu, nc), order="F") * sl.su[:, None]
+        return float(w[sl.t0]), float(w[sl.tf]), x, u
+
+
+def _sample_guess(
+    ph: Phase, g: PhaseGuess | None, lay: MeshLayout
+) -> tuple[float, float, np.ndarray, np.ndarray]:
+    nk, nc = lay.n_nodes, lay.n_col
+    if g is None:
+        # Straight line between the (finite) endpoint bound midpoints: a poor but legal start.
+        b = ph.bounds()
+        lo = np.clip(0.0, ph.t0_bounds[0], ph.t0_bounds[1])
+        hi = np.clip(max(lo + 1.0, ph.tf_bounds[0]), ph.tf_bounds[0], ph.tf_bounds[1])
+        xa = _mid(b["x0_lb"], b["x0_ub"], b["x_lb"], b["x_ub"])
+        xb = _mid(b["xf_lb"], b["xf_ub"], b["x_lb"], b["x_ub"])
+        s = (lay.tau + 1.0) / 2.0
+        x = xa[:, None] + (xb - xa)[:, None] * s[None, :]
+        u = np.tile(_mid(b["u_lb"], b["u_ub"], b["u_lb"], b["u_ub"])[:, None], (1, nc))
+        return float(lo), float(hi), x, u
+    t0, tf = float(g.t[0]), float(g.t[-1])
+    tn = t0 + (tf - t0) * (lay.tau + 1.0) / 2.0
+    x = np.vstack([np.interp(tn, g.t, g.x[:, j]) for j in range(ph.nx)]) if ph.nx else np.zeros((0, nk))
+    u = np.vstack([np.interp(tn[:nc], g.t, g.u[:, j]) for j in range(ph.nu)]) if ph.nu else np.zeros((0, nc))
+    return t0, tf, x, u
+
+
+def _mid(lb: np.ndarray, ub: np.ndarray, glb: np.ndarray, gub: np.ndarray) -> np.ndarray:
+    both = np.isfinite(lb) & np.isfinite(ub)
+    mid = np.where(both, 0.5 * (np.where(both, lb, 0) + np.where(both, ub, 0)), 0.0)
+    return np.clip(mid, glb, gub)

@@ -1,0 +1,173 @@
+"""Standard optimal-control benchmarks for the LGR/hp engine (each well under a second)."""
+
+from __future__ import annotations
+
+import logging
+
+import casadi as ca
+import numpy as np
+import pytest
+
+from mal_planner.ocp import OCPOptions, OCPSolver, Phase, PhaseGuess, PhaseMesh, Problem
+
+
+def _double_integrator(name: str, **kw) -> Phase:
+    return Phase(
+        name=name,
+        states=["x", "v"],
+        controls=["u"],
+        dynamics=lambda x, u, t, p: ca.vertcat(x[1], u[0]),
+        lagrange=lambda x, u, t, p: 0.5 * u[0] ** 2,
+        **kw,
+    )
+
+
+def _bryson_denham(ell: float, mesh: PhaseMesh | None = None) -> Problem:
+    kw = {"mesh": mesh} if mesh else {}
+    ph = _double_integrator(
+        "bd",
+        state_lb=[-10.0, -10.0],
+        state_ub=[ell, 10.0],
+        initial_state_lb=[0.0, 1.0],
+        initial_state_ub=[0.0, 1.0],
+        final_state_lb=[0.0, -1.0],
+        final_state_ub=[0.0, -1.0],
+        t0_bounds=(0.0, 0.0),
+        tf_bounds=(1.0, 1.0),
+        guess=PhaseGuess(t=[0.0, 1.0], x=[[0.0, 1.0], [0.0, -1.0]], u=[[0.0], [0.0]]),
+        **kw,
+    )
+    return Problem(phases=[ph])
+
+
+def test_bryson_denham_state_constrained_hp() -> None:
+    # The state-error estimate barely sees the corners of the constrained arc x = 1/9 at
+    # t = 1/3 and 2/3, so a tolerance below the requested cost accuracy is used.
+    records = []
+    opts = OCPOptions(mesh_tol=1e-8, callback=records.append)
+    sol = OCPSolver(_bryson_denham(1.0 / 9.0), opts).solve()
+    assert sol.success and sol.mesh_converged
+    assert sol.objective == pytest.approx(4.0, rel=1e-4)
+    assert len(sol.mesh_history) >= 2 and records == sol.mesh_history
+    assert sol.mesh_history[-1].segments[0] > 4  # refinement split segments
+    x, _ = sol.interpolate("bd", np.array([0.5]))
+    assert x[0, 0] == pytest.approx(1.0 / 9.0, abs=1e-4)
+    assert sol.phases[0].q == pytest.approx(sol.objective, rel=1e-10)
+
+
+def test_bryson_denham_unconstrained_single_mesh() -> None:
+    sol = OCPSolver(_bryson_denham(1.0, PhaseMesh.uniform(1, 4))).solve()
+    assert sol.success and len(sol.mesh_history) == 1
+    assert sol.objective == pytest.approx(2.0, rel=1e-9)
+
+
+def test_brachistochrone_min_time(caplog: pytest.LogCaptureFixture) -> None:
+    g = 9.81  # y positive downwards, u measured from the vertical
+
+    ph = Phase(
+        name="slide",
+        states=["x", "y", "v"],
+        controls=["u"],
+        dynamics=lambda x, u, t, p: ca.vertcat(x[2] * ca.sin(u[0]), x[2] * ca.cos(u[0]), g * ca.cos(u[0])),
+        state_lb=[0.0, 0.0, 0.0],
+        state_ub=[10.0, 10.0, 50.0],
+        initial_state_lb=[0.0, 0.0, 0.0],
+        initial_state_ub=[0.0, 0.0, 0.0],
+        final_state_lb=[2.0, 2.0, 0.0],
+        final_state_ub=[2.0, 2.0, 50.0],
+        control_lb=0.0,
+        control_ub=np.pi,
+        t0_bounds=(0.0, 0.0),
+        tf_bounds=(0.05, 10.0),
+        guess=PhaseGuess(t=[0.0, 1.0], x=[[0.0, 0.0, 0.0], [2.0, 2.0, 6.0]], u=[[1.0], [1.0]]),
+    )
+    with caplog.at_level(logging.INFO, logger="mal_planner.ocp"):
+        sol = OCPSolver(Problem(phases=[ph], mayer=lambda e, p: e[0].tf)).solve()
+    assert sol.success
+    assert sol.objective == pytest.approx(0.82434, rel=1e-4)
+    assert sol.phases[0].tf == pytest.approx(sol.objective)
+    assert "mesh iter 0" in caplog.text
+
+
+def _three_phase_bd() -> Problem:
+    """Bryson-Denham as unconstrained / on-constraint / unconstrained phases.
+
+    ``p[0]`` is the constraint level l; the interior times are free.  The optimum has
+    switch times 3l and 1 - 3l and J = 4/(9 l); every arc is a cubic, so LGR is exact.
+    """
+    mesh = PhaseMesh.uniform(1, 4)
+    path = {"path": lambda x, u, t, p: x[0] - p[0], "path_ub": 0.0}
+    a = _double_integrator(
+        "rise",
+        initial_state_lb=[0.0, 1.0],
+        initial_state_ub=[0.0, 1.0],
+        final_state_lb=[-10.0, 0.0],
+        final_state_ub=[10.0, 0.0],
+        t0_bounds=(0.0, 0.0),
+        tf_bounds=(0.05, 0.95),
+        mesh=mesh,
+        guess=PhaseGuess(t=[0.0, 0.3], x=[[0.0, 1.0], [0.1, 0.0]], u=[[-6.0], [0.0]]),
+        **path,
+    )
+    b = _double_integrator(
+        "arc",
+        tf_bounds=(0.05, 0.95),
+        mesh=mesh,
+        guess=PhaseGuess(t=[0.3, 0.7], x=[[0.1, 0.0], [0.1, 0.0]], u=[[0.0], [0.0]]),
+        **path,
+    )
+    c = _double_integrator(
+        "fall",
+        final_state_lb=[0.0, -1.0],
+        final_state_ub=[0.0, -1.0],
+        tf_bounds=(1.0, 1.0),
+        mesh=mesh,
+        guess=PhaseGuess(t=[0.7, 1.0], x=[[0.1, 0.0], [0.0, -1.0]], u=[[-6.0], [0.0]]),
+        **path,
+    )
+    prob = Problem(
+        phases=[a, b, c],
+        n_params=1,
+        events=lambda e, p: ca.vertcat(e["rise"].xf[0] - p[0], e["arc"].xf[0] - p[0], e["arc"].xf[1]),
+        events_lb=0.0,
+        events_ub=0.0,
+    )
+    prob.link("rise", "arc")
+    prob.link("arc", "fall", states=["x", ("v", "v")])
+    return prob
+
+
+def test_multiphase_linkage_params_and_nlp_cache() -> None:
+    solver = OCPSolver(_three_phase_bd())
+    sol = solver.solve(params=[1.0 / 9.0])
+    assert sol.success
+    assert sol.objective == pytest.approx(4.0, rel=1e-7)
+    # J is quadratic in the switch time, so a 1e-8 KKT tolerance pins it to ~1e-4 only.
+    assert sol.phase("rise").tf == pytest.approx(1.0 / 3.0, abs=2e-4)
+    assert sol.phase("arc").t0 == pytest.approx(sol.phase("rise").tf, abs=1e-12)
+    assert sol.phase("fall").t0 == pytest.approx(2.0 / 3.0, abs=2e-4)
+    np.testing.assert_allclose(sol.phase("arc").x[0], sol.phase("rise").x[-1], atol=1e-10)
+    assert solver.n_builds == 1
+
+    # New parameter value and a warm start from the previous solution: same NLP object.
+    sol2 = solver.solve(params=[1.0 / 12.0], guess=sol, meshes=sol.meshes)
+    assert sol2.success and solver.n_builds == 1
+    assert sol2.objective == pytest.approx(16.0 / 3.0, rel=1e-7)
+    assert sol2.phase("rise").tf == pytest.approx(0.25, abs=2e-4)
+
+
+def test_nlp_failure_is_reported() -> None:
+    ph = _double_integrator(
+        "bad",
+        initial_state_lb=[0.0, 0.0],
+        initial_state_ub=[0.0, 0.0],
+        control_lb=-1.0,
+        control_ub=1.0,
+        t0_bounds=(0.0, 0.0),
+        tf_bounds=(1.0, 1.0),
+        mesh=PhaseMesh.uniform(2, 3),
+    )
+    prob = Problem(phases=[ph], events=lambda e, p: e[0].xf[0], events_lb=5.0)  # unreachable
+    sol = OCPSolver(prob, OCPOptions(max_iter=200)).solve()
+    assert not sol.success and not sol.nlp_success
+    assert len(sol.mesh_history) == 1 and not sol.mesh_history[0].nlp_success

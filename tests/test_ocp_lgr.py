@@ -1,0 +1,85 @@
+"""LGR nodes, weights, differentiation/integration matrices and mesh helpers."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from mal_planner.ocp import (
+    PhaseMesh,
+    diff_matrix,
+    integration_matrix,
+    lagrange_matrix,
+    lgr_nodes,
+    lgr_weights,
+)
+from mal_planner.ocp.lgr import support_points
+from mal_planner.ocp.mesh import estimate_errors, layout, refine
+
+
+def test_known_nodes_and_weights() -> None:
+    # N = 3: roots of P2 + P3 are -1 and (1 +- sqrt(6))/5.
+    s6 = np.sqrt(6.0)
+    np.testing.assert_allclose(lgr_nodes(3), [-1.0, (1 - s6) / 5, (1 + s6) / 5], atol=1e-14)
+    np.testing.assert_allclose(lgr_weights(3), [2 / 9, (16 + s6) / 18, (16 - s6) / 18], atol=1e-14)
+    np.testing.assert_allclose(lgr_nodes(2), [-1.0, 1 / 3], atol=1e-15)
+    np.testing.assert_allclose(lgr_weights(2), [0.5, 1.5], atol=1e-15)
+
+
+@pytest.mark.parametrize("n", [1, 2, 3, 5, 8, 12, 16])
+def test_quadrature_exact_to_degree_2n_minus_2(n: int) -> None:
+    tau, w = lgr_nodes(n), lgr_weights(n)
+    assert tau[0] == -1.0 and np.all(np.diff(tau) > 0) and tau[-1] < 1.0
+    for k in range(2 * n - 1):
+        exact = (1.0 - (-1.0) ** (k + 1)) / (k + 1)
+        assert abs(w @ tau**k - exact) < 1e-12
+
+
+@pytest.mark.parametrize("n", [1, 2, 4, 7, 10, 15])
+def test_differentiation_exact_to_degree_n(n: int) -> None:
+    d = diff_matrix(n)
+    assert d.shape == (n, n + 1)
+    s, tau = support_points(n), lgr_nodes(n)
+    np.testing.assert_allclose(d.sum(axis=1), 0.0, atol=1e-11)
+    for k in range(n + 1):
+        deriv = k * tau ** (k - 1) if k else np.zeros(n)
+        np.testing.assert_allclose(d @ s**k, deriv, atol=1e-9 * max(1, n * n))
+
+
+@pytest.mark.parametrize("n", [2, 5, 9])
+def test_integration_matrix_inverts_d(n: int) -> None:
+    s = support_points(n)
+    poly = np.polynomial.Polynomial(np.arange(1.0, n + 2))  # degree n
+    x = poly(s)
+    xdot = poly.deriv()(lgr_nodes(n))
+    np.testing.assert_allclose(x[0] + integration_matrix(n) @ xdot, x[1:], atol=1e-10)
+
+
+def test_lagrange_matrix_reproduces_polynomials() -> None:
+    s = support_points(6)
+    xq = np.linspace(-1, 1, 17)
+    np.testing.assert_allclose(lagrange_matrix(s, xq) @ (s**5 - 2 * s), xq**5 - 2 * xq, atol=1e-12)
+
+
+def test_layout_shares_segment_boundaries() -> None:
+    mesh = PhaseMesh((0.0, 0.3, 1.0), (3, 4))
+    lay = layout(mesh)
+    assert lay.n_col == 7 and lay.n_nodes == 8
+    np.testing.assert_allclose(lay.tau[[0, 3, 7]], [-1.0, -0.4, 1.0])
+    assert abs(lay.w.sum() - 2.0) < 1e-13
+    assert layout(mesh) is lay  # cached
+
+
+def test_error_estimate_zero_for_polynomial_state_and_refine_rules() -> None:
+    # xdot = t^2 has a cubic solution, reproduced exactly by degree >= 3.
+    mesh = PhaseMesh.uniform(2, 4)
+    lay = layout(mesh)
+    t = (lay.tau + 1.0) / 2.0
+    x = (t**3 / 3.0)[None, :]
+    errs = estimate_errors(lay, 0.0, 1.0, x, np.zeros((0, lay.n_col)), lambda xx, uu, tt: tt[None, :] ** 2)
+    assert errs.max() < 1e-13
+    m = refine(PhaseMesh.uniform(2, 4), np.array([1e-3, 1e-9]), 1e-6, 3, 10)
+    assert m.degrees == (9, 4)  # P = ceil(log(1e3)/log(4)) = 5
+    m = refine(PhaseMesh.uniform(2, 8), np.array([1e-1, 1e-9]), 1e-6, 3, 10)
+    # P = ceil(log(1e5)/log(8)) = 6 -> 14 > 10: split into ceil(14/3) = 5 segments of degree 3.
+    assert m.degrees == (3, 3, 3, 3, 3, 8) and np.allclose(m.breaks[:6], np.linspace(0, 0.5, 6))
