@@ -149,11 +149,18 @@ def test_multiphase_linkage_params_and_nlp_cache() -> None:
     np.testing.assert_allclose(sol.phase("arc").x[0], sol.phase("rise").x[-1], atol=1e-10)
     assert solver.n_builds == 1
 
-    # New parameter value and a warm start from the previous solution: same NLP object.
-    sol2 = solver.solve(params=[1.0 / 12.0], guess=sol, meshes=sol.meshes)
+    # New parameter value, same guess: the cached NLP is reused as is.
+    sol2 = solver.solve(params=[1.0 / 12.0])
     assert sol2.success and solver.n_builds == 1
     assert sol2.objective == pytest.approx(16.0 / 3.0, rel=1e-7)
     assert sol2.phase("rise").tf == pytest.approx(0.25, abs=2e-4)
+
+    # Warm starts from a solution use the warm-option NLP: built once, then cached too.
+    for k, ell in enumerate((1.0 / 10.0, 1.0 / 11.0)):
+        sol3 = solver.solve(params=[ell], guess=sol2, meshes=sol2.meshes)
+        assert sol3.success and solver.n_builds == 2
+        assert sol3.objective == pytest.approx(4.0 / (9.0 * ell), rel=1e-7)
+        assert sol3.mesh_history[0].build_time == 0.0 or k == 0
 
 
 def test_nlp_failure_is_reported() -> None:

@@ -1,4 +1,4 @@
-"""Generate cyclonedds ``IdlStruct`` classes (ROS 2 DDS names, XCDR1, final) from rosbags field definitions."""
+"""Generate cyclonedds ``IdlStruct`` classes (ROS 2 DDS names, XCDR1, final) from rosbags field defs."""
 
 from __future__ import annotations
 
@@ -106,7 +106,7 @@ def get_class(ros_name: str) -> type[IdlStruct]:
 
 
 def get_wire_class(ros_part: str) -> type[IdlStruct]:
-    """Wire type of a service request/reply: request header then the fields (``pkg::srv::dds_::X_Request_``)."""
+    """Wire type of a request/reply: request header, then the fields (``pkg::srv::dds_::X_Request_``)."""
     key = "wire:" + ros_part
     with _lock:
         if key in _classes:

@@ -14,7 +14,7 @@ if TYPE_CHECKING:
 
 PACKAGE = "mal_msgs"
 
-#: Standard service definitions we use that the rosbags Jazzy store lacks (verbatim from ros2/common_interfaces).
+#: Standard services we use that the rosbags Jazzy store lacks (as in ros2/common_interfaces).
 STD_SRVS: dict[str, str] = {
     "std_srvs/srv/Trigger": "---\nbool success   # indicate successful run of triggered service\n"
     "string message # informational, e.g. for error messages\n",
@@ -90,13 +90,15 @@ def srv_typesdict(srv_name: str, text: str) -> Typesdict:
 
 
 def package_typesdicts() -> tuple[Typesdict, list[str]]:
-    """Parse all messages and services of ``mal_msgs`` plus :data:`STD_SRVS`; return (types, service names)."""
+    """Parse all messages/services of ``mal_msgs`` plus :data:`STD_SRVS`; return (types, service names)."""
     root = interface_dir()
     types: Typesdict = {}
     services: list[str] = []
     for path in sorted((root / "msg").glob("*.msg")):
         types.update(_parse(path.read_text(encoding="utf-8"), PACKAGE, path.stem))
-    srv_texts = {f"{PACKAGE}/srv/{p.stem}": p.read_text(encoding="utf-8") for p in (root / "srv").glob("*.srv")}
+    srv_texts = {
+        f"{PACKAGE}/srv/{p.stem}": p.read_text(encoding="utf-8") for p in (root / "srv").glob("*.srv")
+    }
     srv_texts.update(STD_SRVS)
     for srv_name, text in sorted(srv_texts.items()):
         types.update(srv_typesdict(srv_name, text))

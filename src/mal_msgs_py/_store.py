@@ -3,7 +3,7 @@
 from __future__ import annotations
 
 import json
-from functools import lru_cache
+from functools import cache, lru_cache
 from hashlib import sha256
 from typing import TYPE_CHECKING, Any
 
@@ -78,7 +78,9 @@ def _field(name: str, desc: Any, refs: dict[str, dict[str, Any]], fielddefs: Any
 def _struct(typename: str, refs: dict[str, dict[str, Any]], fielddefs: Any) -> dict[str, Any]:
     if typename not in refs:
         refs[typename] = {}  # cycle guard; filled below
-        fields = fielddefs[typename][1] or [("structure_needs_at_least_one_member", (Nodetype.BASE, ("uint8", 0)))]
+        fields = fielddefs[typename][1] or [
+            ("structure_needs_at_least_one_member", (Nodetype.BASE, ("uint8", 0)))
+        ]
         refs[typename] = {
             "type_name": typename,
             "fields": [_field(n, d, refs, fielddefs) for n, d in fields],
@@ -86,7 +88,7 @@ def _struct(typename: str, refs: dict[str, dict[str, Any]], fielddefs: Any) -> d
     return refs[typename]
 
 
-@lru_cache(maxsize=None)
+@cache
 def type_hash(typename: str) -> str:
     """RIHS01 hash (``RIHS01_<64 hex>``) of a message or service type, as ROS 2 Jazzy computes it."""
     fielddefs = typestore().fielddefs

@@ -51,9 +51,7 @@ def phase_function(phase: Phase, n_params: int) -> ca.Function:
         raise ValueError(f"phase {phase.name!r}: dynamics must return {phase.nx} values, got {xdot.shape}")
     lag = _col(phase.lagrange(x, u, t, p)) if phase.lagrange else ca.SX(0)
     path = _col(phase.path(x, u, t, p)) if phase.path else ca.SX(0, 1)
-    return ca.Function(
-        f"{phase.name}_f", [x, u, t, p], [xdot, lag, path], ["x", "u", "t", "p"], ["f", "l", "c"]
-    )
+    return ca.Function(f"{phase.name}_f", [x, u, t, p], [xdot, lag, path], ["x", "u", "t", "p"], ["f", "l", "c"])
 
 
 def _bounds(values: Sequence[float] | float | None, n: int, default: float) -> np.ndarray:
@@ -177,9 +175,7 @@ class Transcription:
             ia, ib = problem.phase_index(lk.phase_a), problem.phase_index(lk.phase_b)
             pa, pb = problem.phases[ia], problem.phases[ib]
             ea, eb = ends[ia], ends[ib]
-            rows = [
-                ea.xf[list(pa.states).index(sa)] - eb.x0[list(pb.states).index(sb)] for sa, sb in lk.pairs
-            ]
+            rows = [ea.xf[list(pa.states).index(sa)] - eb.x0[list(pb.states).index(sb)] for sa, sb in lk.pairs]
             if lk.time:
                 rows.append(ea.tf - eb.t0)
             if rows:
@@ -243,9 +239,7 @@ class Transcription:
         return float(w[sl.t0]), float(w[sl.tf]), x, u
 
 
-def _sample_guess(
-    ph: Phase, g: PhaseGuess | None, lay: MeshLayout
-) -> tuple[float, float, np.ndarray, np.ndarray]:
+def _sample_guess(ph: Phase, g: PhaseGuess | None, lay: MeshLayout) -> tuple[float, float, np.ndarray, np.ndarray]:
     nk, nc = lay.n_nodes, lay.n_col
     if g is None:
         # Straight line between the (finite) endpoint bound midpoints: a poor but legal start.

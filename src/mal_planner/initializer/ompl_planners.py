@@ -1,0 +1,137 @@
+"""The planning query answered by OMPL's geometric planners (``ompl:RRT``, ``ompl:RRTConnect``, ...).
+
+The state space is ``RealVectorStateSpace(3)`` bounded by the airspace; both the state validity checker
+and the motion validator call our :class:`CollisionChecker`, so OMPL's motions are tested with the exact
+segment check and cannot step through a thin wall. OMPL's global RNG is re-seeded from the caller's
+NumPy generator before every query, and planners stop after a fixed number of iterations (or at the
+time limit), so results are reproducible unless the time limit is hit. Paths are simplified with our
+shortcutting.
+"""
+
+from __future__ import annotations
+
+import time
+from dataclasses import dataclass
+from functools import cache
+
+import numpy as np
+
+from mal_planner.initializer.collision import CollisionChecker
+from mal_planner.initializer.planners import OMPL_PREFIX, PlanningFailed
+from mal_planner.initializer.smoothing import smooth_path
+
+_GEOMETRIC_PLANNERS = (
+    "RRT", "RRTConnect", "RRTstar", "InformedRRTstar", "SORRTstar", "AORRTC", "BITstar", "BFMT", "FMT",
+    "KPIECE1", "BKPIECE1", "LBKPIECE1", "PRM", "PRMstar",
+)
+# Planners that keep improving the path until told to stop; the others return their first solution.
+_ANYTIME = {"RRTstar", "InformedRRTstar", "SORRTstar", "AORRTC", "BITstar", "PRM", "PRMstar"}
+
+
+@cache
+def available_ompl_planners() -> tuple[str, ...]:
+    """Names of the ``ompl.geometric`` planners usable here (empty when OMPL is not installed)."""
+    try:
+        import ompl.geometric as og
+    except ImportError:
+        return ()
+    return tuple(name for name in _GEOMETRIC_PLANNERS if hasattr(og, name))
+
+
+@dataclass
+class OmplPlanner:
+    """An ``ompl.geometric`` planner by name. Options:
+
+    ``time_limit`` (s per query), ``max_iterations`` (termination-condition polls, about one per planner
+    iteration; anytime planners such as RRT* run exactly this many unless the time limit comes first;
+    None: 20000, or 1000 for anytime planners),
+    ``range`` (nm; the planner's maximum motion, None: OMPL's default), ``smooth_rounds``.
+    """
+
+    name: str
+    time_limit: float = 5.0
+    max_iterations: int | None = None
+    range: float | None = 1.0
+    smooth_rounds: int = 40
+
+    def __post_init__(self) -> None:
+        if self.name not in available_ompl_planners():
+            raise ValueError(f"unknown OMPL planner {self.name!r} (known: {', '.join(available_ompl_planners())})")
+        self.spec = OMPL_PREFIX + self.name
+        if self.max_iterations is None:
+            self.max_iterations = 1000 if self.name in _ANYTIME else 20000
+        self.last_iterations = 0
+
+    def plan(
+        self, checker: CollisionChecker, start: np.ndarray, goal: np.ndarray, rng: np.random.Generator
+    ) -> np.ndarray:
+        raw = self.search(checker, start, goal, rng)
+        return smooth_path(checker, raw, rng, self.smooth_rounds)
+
+    def search(
+        self, checker: CollisionChecker, start: np.ndarray, goal: np.ndarray, rng: np.random.Generator
+    ) -> np.ndarray:
+        """The planner's raw path (K, 3); raises :class:`PlanningFailed`."""
+        import ompl.base as ob
+        import ompl.geometric as og
+        import ompl.util as ou
+
+        start, goal = np.asarray(start, dtype=float), np.asarray(goal, dtype=float)
+        for label, p in (("start", start), ("goal", goal)):
+            if not checker.point_free(p):
+                raise PlanningFailed(f"{self.spec}: the {label} {np.round(p, 4).tolist()} is not free")
+        ou.setLogLevel(ou.LOG_NONE)  # setSeed reports an error once sampling has started; it still reseeds
+        ou.RNG.setSeed(int(rng.integers(1, 2**31 - 1)))
+
+        space = ob.RealVectorStateSpace(3)
+        bounds = ob.RealVectorBounds(3)
+        for i, (lo, hi) in enumerate(checker.airspace):
+            bounds.setLow(i, float(lo))
+            bounds.setHigh(i, float(hi))
+        space.setBounds(bounds)
+        ss = og.SimpleSetup(space)
+        si = ss.getSpaceInformation()
+
+        def state_valid(state) -> bool:
+            return checker.point_free(np.array([state[0], state[1], state[2]]))
+
+        class ExactMotionValidator(ob.MotionValidator):
+            def checkMotion(self, s1, s2, *rest) -> bool:  # noqa: N802 (OMPL's name)
+                a = np.array([s1[0], s1[1], s1[2]])
+                b = np.array([s2[0], s2[1], s2[2]])
+                return checker.segment_free(a, b)
+
+        ss.setStateValidityChecker(state_valid)
+        validator = ExactMotionValidator(si)
+        si.setMotionValidator(validator)
+        s_state, g_state = space.allocState(), space.allocState()
+        for i in range(3):
+            s_state[i], g_state[i] = float(start[i]), float(goal[i])
+        ss.setStartAndGoalStates(s_state, g_state)
+        planner = getattr(og, self.name)(si)
+        if self.range is not None and hasattr(planner, "setRange"):
+            planner.setRange(float(self.range))
+        ss.setPlanner(planner)
+        ss.setOptimizationObjective(ob.PathLengthOptimizationObjective(si))
+
+        polls = [0]
+        deadline = time.perf_counter() + self.time_limit
+        anytime = self.name in _ANYTIME
+
+        def stop() -> bool:
+            polls[0] += 1
+            if polls[0] >= self.max_iterations or time.perf_counter() > deadline:
+                return True
+            return not anytime and ss.haveExactSolutionPath()
+
+        status = ss.solve(ob.PlannerTerminationCondition(stop))
+        self.last_iterations = polls[0]
+        if not ss.haveExactSolutionPath():
+            raise PlanningFailed(
+                f"{self.spec}: no path from {np.round(start, 3).tolist()} to {np.round(goal, 3).tolist()} "
+                f"({status}, {polls[0]} iterations)"
+            )
+        path = ss.getSolutionPath()
+        out = np.array([[path.getState(i)[j] for j in range(3)] for i in range(path.getStateCount())])
+        out[0], out[-1] = start, goal
+        return out

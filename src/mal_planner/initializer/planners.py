@@ -1,0 +1,79 @@
+"""The path-planner interface, the registry of planners and :func:`make_planner`.
+
+A planner answers one query: an obstacle-free polyline from ``start`` to ``goal`` (3-D points in nm)
+for a :class:`~mal_planner.initializer.collision.CollisionChecker`. Specs: ``"multi-rrt"`` (the thesis's
+multiple-tree RRT, on NumPy) and ``"ompl:<Planner>"`` (any planner of ``ompl.geometric`` by name, e.g.
+``"ompl:RRTConnect"``, the bidirectional RRT of chapter 3).
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+from typing import Any, Protocol, runtime_checkable
+
+import numpy as np
+
+from mal_planner.initializer.collision import CollisionChecker
+
+
+class PlanningFailed(RuntimeError):
+    """No obstacle-free path was found; ``str()`` is one line."""
+
+
+@runtime_checkable
+class PathPlanner(Protocol):
+    """Plans a free polyline (K, 3): first row = start, last row = goal."""
+
+    spec: str
+
+    def plan(
+        self, checker: CollisionChecker, start: np.ndarray, goal: np.ndarray, rng: np.random.Generator
+    ) -> np.ndarray: ...
+
+
+PlannerFactory = Callable[..., PathPlanner]
+_REGISTRY: dict[str, PlannerFactory] = {}
+OMPL_PREFIX = "ompl:"
+
+
+def register_planner(name: str, factory: PlannerFactory) -> None:
+    """Make ``make_planner(name, **options)`` return ``factory(**options)``."""
+    _REGISTRY[name] = factory
+
+
+def known_specs() -> list[str]:
+    """Registered specs plus the OMPL planners available in this installation."""
+    from mal_planner.initializer.ompl_planners import available_ompl_planners
+
+    _register_builtin()
+    return sorted(_REGISTRY) + [OMPL_PREFIX + name for name in available_ompl_planners()]
+
+
+def make_planner(spec: str, **options: Any) -> PathPlanner:
+    """Build the planner named by ``spec`` (e.g. ``"multi-rrt"``, ``"ompl:RRTConnect"``).
+
+    ``options`` go to the planner's constructor. Raises ``ValueError`` naming the known specs.
+    """
+    _register_builtin()
+    if spec in _REGISTRY:
+        return _REGISTRY[spec](**options)
+    if spec.startswith(OMPL_PREFIX):
+        from mal_planner.initializer.ompl_planners import OmplPlanner, available_ompl_planners
+
+        name = spec[len(OMPL_PREFIX):]
+        if name in available_ompl_planners():
+            return OmplPlanner(name, **options)
+    raise ValueError(f"unknown planner {spec!r} (known: {', '.join(known_specs())})")
+
+
+def path_length(path: np.ndarray) -> float:
+    """Total length of a polyline (K, 3)."""
+    path = np.asarray(path, dtype=float)
+    return float(np.sum(np.linalg.norm(np.diff(path, axis=0), axis=1))) if len(path) > 1 else 0.0
+
+
+def _register_builtin() -> None:
+    if "multi-rrt" not in _REGISTRY:
+        from mal_planner.initializer.multi_rrt import MultiRRT
+
+        register_planner("multi-rrt", MultiRRT)

@@ -1,0 +1,122 @@
+"""Initial guesses for the landing problem: from the RRT initializer, or naive straight lines.
+
+Both give, per aircraft, a time series of the states at constant speed, time-scaled so that the
+aircraft lands at its fixed landing time when the scenario fixes one, and the time at which the
+path crosses the gate plane (which places the phase boundaries).
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+from dataclasses import dataclass
+
+import numpy as np
+
+from mal_planner.obstacles import Gate
+from mal_planner.scenario import Aircraft, Scenario
+
+
+@dataclass(frozen=True)
+class AircraftGuess:
+    callsign: str
+    t: np.ndarray
+    states: np.ndarray
+    """(K, 5) x, y, z, gamma, heading (heading unwrapped)."""
+    landing_time: float
+    gate_time: float | None
+
+    def controls(self, model_gravity: float, speed: float) -> np.ndarray:
+        """Load factors that reproduce the guess's angle rates (finite differences), clipped later."""
+        gamma, heading = self.states[:, 3], self.states[:, 4]
+        dt = np.gradient(self.t)
+        dt = np.where(dt > 0, dt, 1.0)
+        gamma_rate = np.gradient(gamma) / dt
+        heading_rate = np.gradient(heading) / dt
+        n_v = np.cos(gamma) + speed / model_gravity * gamma_rate
+        n_h = speed / model_gravity * heading_rate * np.cos(gamma)
+        return np.column_stack([n_h, n_v])
+
+    def state_at(self, t: np.ndarray) -> np.ndarray:
+        return np.column_stack([np.interp(t, self.t, self.states[:, k]) for k in range(5)])
+
+
+def _crossing_time(gate: Gate | None, t: np.ndarray, points: np.ndarray) -> float | None:
+    if gate is None:
+        return None
+    d = gate.signed_distance(points)
+    idx = np.flatnonzero((d[:-1] > 0) & (d[1:] <= 0))
+    if idx.size == 0:
+        return None
+    k = int(idx[0])
+    w = d[k] / (d[k] - d[k + 1])
+    return float(t[k] + w * (t[k + 1] - t[k]))
+
+
+def _smooth_angles(states: np.ndarray, window: int) -> np.ndarray:
+    """Moving-average the piecewise-constant path angles so the guess has finite rates."""
+    if window <= 1 or len(states) < window:
+        return states
+    out = states.copy()
+    kernel = np.ones(window) / window
+    for k in (3, 4):
+        padded = np.pad(states[:, k], (window // 2, window - 1 - window // 2), mode="edge")
+        out[:, k] = np.convolve(padded, kernel, mode="valid")
+    return out
+
+
+def _make_guess(aircraft: Aircraft, t: np.ndarray, states: np.ndarray, gate: Gate | None,
+                landing_time: float, smooth_s: float = 8.0) -> AircraftGuess:
+    """Scale the time axis so the guess lands at ``landing_time``; start from the true initial state."""
+    scale = landing_time / t[-1]
+    t = t * scale
+    states = states.copy()
+    states[:, 4] = np.unwrap(states[:, 4])
+    # The first sample carries the aircraft's actual attitude, then blends into the path's angles.
+    states[0, 3:] = aircraft.state0[3:]
+    states[0, 4] = states[1, 4] + np.remainder(aircraft.state0[4] - states[1, 4] + np.pi, 2 * np.pi) - np.pi
+    dt = float(np.median(np.diff(t))) if len(t) > 1 else 1.0
+    states = _smooth_angles(states, max(1, int(round(smooth_s / dt))))
+    return AircraftGuess(aircraft.callsign, t, states, landing_time, _crossing_time(gate, t, states[:, :3]))
+
+
+def _path_states(points: np.ndarray, speed: float, dt: float) -> tuple[np.ndarray, np.ndarray]:
+    """States along a polyline at constant speed: positions interpolated, angles per segment."""
+    seg = np.diff(points, axis=0)
+    length = np.linalg.norm(seg, axis=1)
+    keep = length > 1e-12
+    seg, length = seg[keep], length[keep]
+    pts = np.vstack([points[:1], points[1:][keep]])
+    s_nodes = np.concatenate([[0.0], np.cumsum(length)])
+    total = s_nodes[-1]
+    n = max(int(np.ceil(total / speed / dt)), 2) + 1
+    s = np.linspace(0.0, total, n)
+    pos = np.column_stack([np.interp(s, s_nodes, pts[:, k]) for k in range(3)])
+    which = np.clip(np.searchsorted(s_nodes, s, side="right") - 1, 0, len(seg) - 1)
+    gamma = np.arcsin(np.clip(seg[which, 2] / length[which], -1, 1))
+    heading = np.unwrap(np.arctan2(seg[which, 1], seg[which, 0]))
+    return s / speed, np.column_stack([pos, gamma, heading])
+
+
+def guess_from_initial_plan(scenario: Scenario, trajectories: Sequence, landing_times: Sequence[float],
+                            dt: float = 1.0) -> list[AircraftGuess]:
+    """Guesses from the initializer's paths (objects with ``callsign`` and ``waypoints``) in landing order."""
+    gate = scenario.gates[0] if scenario.gates else None
+    out = []
+    for traj, t_land in zip(trajectories, landing_times, strict=True):
+        ac = scenario.aircraft_by_callsign(traj.callsign)
+        t, states = _path_states(np.asarray(traj.waypoints, float), ac.speed, dt)
+        out.append(_make_guess(ac, t, states, gate, t_land))
+    return out
+
+
+def straight_line_guess(scenario: Scenario, callsigns: Sequence[str], landing_times: Sequence[float],
+                        dt: float = 1.0) -> list[AircraftGuess]:
+    """Naive guesses: straight from each start to the runway, ignoring obstacles and gates."""
+    gate = scenario.gates[0] if scenario.gates else None
+    out = []
+    for cs, t_land in zip(callsigns, landing_times, strict=True):
+        ac = scenario.aircraft_by_callsign(cs)
+        points = np.vstack([ac.position, scenario.runway_state[:3]])
+        t, states = _path_states(points, ac.speed, dt)
+        out.append(_make_guess(ac, t, states, gate, t_land))
+    return out

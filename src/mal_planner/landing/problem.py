@@ -1,0 +1,212 @@
+"""Build the landing problem as a multi-phase OCP (see :mod:`mal_planner.landing.layout`).
+
+Per phase: the stacked states (x, y, z, gamma, heading) and controls (n_h, n_v) of the aircraft
+airborne in it; path constraints: the thesis's log p-norm obstacle functions (>= 0), the linear bank
+limit, and the squared distance of every pair (>= separation^2). Events: initial states (parameters,
+so a replan with new radar states reuses the NLP), continuity of each aircraft between phases (linkage),
+gate conditions (in the hole, level, heading set) at its gate event, runway state at its landing event
+and the landing times (parameters when fixed, spacing constraints when free). Cost, as in the thesis:
+-sum t_obs + sum of integrals of gamma'^2 + heading'^2; with free landing times, +sum t_land instead
+of -sum t_obs (maximising t_obs is only meaningful when t_land is fixed).
+"""
+
+from __future__ import annotations
+
+import itertools
+import math
+from dataclasses import dataclass
+
+import casadi as ca
+import numpy as np
+
+from mal_planner.dynamics import STATE_NAMES, bank_limit_residuals
+from mal_planner.landing.guess import AircraftGuess
+from mal_planner.landing.layout import PhaseLayout
+from mal_planner.ocp import Phase, PhaseGuess, PhaseMesh, Problem
+from mal_planner.scenario import Scenario
+
+GAMMA_BOUND = math.radians(30.0)
+HEADING_BOUND = 4.0 * math.pi
+
+
+@dataclass
+class LandingProblem:
+    problem: Problem
+    layout: PhaseLayout
+    n_aircraft: int
+    fixed_landing_times: bool
+
+    def params(self, scenario: Scenario, landing_times: list[float]) -> np.ndarray:
+        """Parameter vector: initial states (landing order) then landing times."""
+        states = [scenario.aircraft_by_callsign(cs).state0 for cs in self.layout.callsigns]
+        return np.concatenate([np.concatenate(states), np.asarray(landing_times, float)])
+
+
+def _wrap_near(target: float, reference: float) -> float:
+    """The representative of ``target`` + 2 pi k closest to ``reference`` (heading is not wrapped)."""
+    return target + 2.0 * math.pi * round((reference - target) / (2.0 * math.pi))
+
+
+def build_landing_problem(scenario: Scenario, layout: PhaseLayout, guesses: list[AircraftGuess],
+                          fixed_landing_times: bool = True, mesh: PhaseMesh | None = None,
+                          horizon: float | None = None) -> LandingProblem:
+    """Assemble the OCP; ``guesses`` are in landing order and place each phase's initial guess."""
+    n = len(layout.callsigns)
+    aircraft = [scenario.aircraft_by_callsign(cs) for cs in layout.callsigns]
+    gate = scenario.gates[0] if scenario.gates else None
+    horizon = horizon or 2.0 * max(g.landing_time for g in guesses) + 60.0
+    mesh = mesh or PhaseMesh.uniform(4, 6)
+    event_times = [ev.time_guess for ev in layout.events]
+    phases: list[Phase] = []
+    members: list[list[int]] = []
+    for k in range(layout.n_phases):
+        who = layout.airborne(k)
+        members.append(who)
+        phases.append(_phase(k, who, scenario, layout, aircraft, guesses, gate, mesh, horizon,
+                             (event_times[k - 1] if k else 0.0, event_times[k])))
+    n_states = len(STATE_NAMES)
+
+    def index_of(k: int, i: int) -> int:
+        return members[k].index(i)
+
+    def events(E, p):
+        out = []
+        # Initial states of every aircraft (all are airborne in phase 0).
+        for i in range(n):
+            j = index_of(0, i)
+            out.append(E[0].x0[j * n_states:(j + 1) * n_states] - p[i * n_states:(i + 1) * n_states])
+        # Landing times.
+        for i in range(n):
+            t_land = E[layout.event_index("land", i)].tf
+            if fixed_landing_times:
+                out.append(t_land - p[n * n_states + i])
+        if not fixed_landing_times:
+            for i in range(n - 1):
+                out.append(E[layout.event_index("land", i + 1)].tf - E[layout.event_index("land", i)].tf)
+        return ca.vertcat(*out)
+
+    n_eq = n * n_states + (n if fixed_landing_times else 0)
+    spacing = [] if fixed_landing_times else [scenario.landing_spacing_s] * (n - 1)
+    lb = [0.0] * n_eq + spacing
+    ub = [0.0] * n_eq + [math.inf] * len(spacing)
+
+    def mayer(E, p):
+        if fixed_landing_times:
+            if not layout.has_gate:
+                return ca.SX(0.0)
+            return -sum(E[layout.event_index("gate", i)].tf for i in range(n))
+        return sum(E[layout.event_index("land", i)].tf for i in range(n))
+
+    problem = Problem(phases=phases, n_params=n * n_states + n, mayer=mayer, events=events,
+                      events_lb=lb, events_ub=ub)
+    for k in range(layout.n_phases - 1):
+        pairs = []
+        for i in members[k + 1]:
+            cs = layout.callsigns[i]
+            pairs += [f"{cs}.{s}" for s in STATE_NAMES]
+        problem.link(phases[k].name, phases[k + 1].name, pairs, time=True)
+    return LandingProblem(problem, layout, n, fixed_landing_times)
+
+
+def _phase(k, who, scenario, layout, aircraft, guesses, gate, mesh, horizon, guess_span) -> Phase:
+    states, controls = [], []
+    x_lb, x_ub, u_lb, u_ub = [], [], [], []
+    xf_lb, xf_ub = [], []
+    end = layout.events[k]
+    for i in who:
+        ac, cs = aircraft[i], layout.callsigns[i]
+        states += [f"{cs}.{s}" for s in STATE_NAMES]
+        controls += [f"{cs}.n_h", f"{cs}.n_v"]
+        lo = [*scenario.airspace[:, 0], -GAMMA_BOUND, -HEADING_BOUND]
+        hi = [*scenario.airspace[:, 1], GAMMA_BOUND, HEADING_BOUND]
+        if gate is not None:  # keep each aircraft on its side of the gate plane in this phase
+            if layout.approaching(k, i):
+                (lo if gate.direction < 0 else hi)[gate.axis] = gate.position
+            else:
+                (hi if gate.direction < 0 else lo)[gate.axis] = gate.position
+        x_lb += lo
+        x_ub += hi
+        flo, fhi = list(lo), list(hi)
+        guess_heading = float(guesses[i].state_at(np.array([guess_span[1]]))[0, 4])
+        if end.aircraft == i and end.kind == "gate":
+            flo[gate.axis] = fhi[gate.axis] = gate.position
+            for (b_lo, b_hi), ax in zip(gate.bounds, gate.other_axes, strict=True):
+                flo[ax], fhi[ax] = max(flo[ax], b_lo), min(fhi[ax], b_hi)
+            flo[3] = fhi[3] = gate.flight_path_angle
+            flo[4] = fhi[4] = _wrap_near(gate.heading, guess_heading)
+        elif end.aircraft == i and end.kind == "land":
+            rw = scenario.runway_state
+            flo[:4] = fhi[:4] = list(rw[:4])
+            flo[4] = fhi[4] = _wrap_near(float(rw[4]), guess_heading)
+        xf_lb += flo
+        xf_ub += fhi
+        u_lb += [ac.limits.n_h[0], ac.limits.n_v[0]]
+        u_ub += [ac.limits.n_h[1], ac.limits.n_v[1]]
+    n_ac = len(who)
+    models = [aircraft[i].dynamics for i in who]
+    limits = [aircraft[i].limits for i in who]
+    obstacles = scenario.obstacles
+    pairs = list(itertools.combinations(range(n_ac), 2))
+
+    def dynamics(x, u, t, p):
+        return ca.vertcat(*[m.rhs(x[5 * j:5 * j + 5], u[2 * j:2 * j + 2]) for j, m in enumerate(models)])
+
+    def lagrange(x, u, t, p):
+        total = 0
+        for j, m in enumerate(models):
+            g_rate, h_rate = m.angle_rates(x[5 * j:5 * j + 5], u[2 * j:2 * j + 2])
+            total += g_rate**2 + h_rate**2
+        return total
+
+    def path(x, u, t, p):
+        out = []
+        for j in range(n_ac):
+            px, py, pz = x[5 * j], x[5 * j + 1], x[5 * j + 2]
+            out += [ob.log_pnorm(px, py, pz) for ob in obstacles]
+            out.append(bank_limit_residuals(u[2 * j], u[2 * j + 1], limits[j].bank_angle_max))
+        for a, b in pairs:
+            d = x[5 * a:5 * a + 3] - x[5 * b:5 * b + 3]
+            out.append(ca.sumsqr(d))
+        return ca.vertcat(*out)
+
+    p_lb, p_ub = [], []
+    for _ in range(n_ac):
+        p_lb += [0.0] * len(obstacles) + [-math.inf, -math.inf]
+        p_ub += [math.inf] * len(obstacles) + [0.0, 0.0]
+    sep2 = scenario.separation_nm**2
+    p_lb += [sep2] * len(pairs)
+    p_ub += [math.inf] * len(pairs)
+
+    t_guess = np.linspace(guess_span[0], guess_span[1], 25)
+    xg = np.hstack([guesses[i].state_at(t_guess) for i in who])
+    ug = np.hstack([_clip_controls(guesses[i], aircraft[i], t_guess) for i in who])
+    return Phase(
+        name=layout.phase_name(k),
+        states=states,
+        controls=controls,
+        dynamics=dynamics,
+        lagrange=lagrange,
+        path=path,
+        path_lb=p_lb,
+        path_ub=p_ub,
+        state_lb=x_lb,
+        state_ub=x_ub,
+        final_state_lb=xf_lb,
+        final_state_ub=xf_ub,
+        control_lb=u_lb,
+        control_ub=u_ub,
+        t0_bounds=(0.0, 0.0) if k == 0 else (0.0, horizon),
+        tf_bounds=(0.0, horizon),
+        min_duration=1e-2,
+        guess=PhaseGuess(t=t_guess, x=xg, u=ug),
+        mesh=mesh,
+    )
+
+
+def _clip_controls(guess: AircraftGuess, ac, t: np.ndarray) -> np.ndarray:
+    u_all = guess.controls(ac.dynamics.gravity, ac.speed)
+    u = np.column_stack([np.interp(t, guess.t, u_all[:, k]) for k in range(2)])
+    u[:, 1] = np.clip(u[:, 1], max(ac.limits.n_v[0], 1e-3), ac.limits.n_v[1])
+    cap = np.tan(ac.limits.bank_angle_max) * u[:, 1]
+    u[:, 0] = np.clip(u[:, 0], np.maximum(-cap, ac.limits.n_h[0]), np.minimum(cap, ac.limits.n_h[1]))
+    return u

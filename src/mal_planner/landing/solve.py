@@ -1,0 +1,187 @@
+"""Solve the landing problem: initial guess -> phase layout -> OCP -> per-aircraft trajectories."""
+
+from __future__ import annotations
+
+import logging
+import time
+from collections.abc import Sequence
+from dataclasses import dataclass, field
+from typing import Literal
+
+import numpy as np
+
+from mal_planner.landing.guess import AircraftGuess, guess_from_initial_plan, straight_line_guess
+from mal_planner.landing.layout import PhaseLayout, plan_layout
+from mal_planner.landing.problem import LandingProblem, build_landing_problem
+from mal_planner.ocp import MeshIteration, OCPOptions, OCPSolution, OCPSolver, PhaseMesh
+from mal_planner.scenario import Scenario
+from mal_planner.trajectory import Trajectory
+
+log = logging.getLogger("mal_planner.optimizer")
+
+
+@dataclass(frozen=True)
+class LandingOptions:
+    guess: Literal["initializer", "straight"] = "initializer"
+    """Initial guess: the initializer's paths (the thesis's method) or naive straight lines."""
+    fixed_landing_times: bool = True
+    """Fix the landing times (scenario's, else the sequencer's plus ``landing_time_margin_s``)."""
+    landing_time_margin_s: float = 5.0
+    segments: int = 4
+    degree: int = 6
+    mesh_tol: float = 1e-6
+    n_min: int = 3
+    n_max: int = 10
+    max_mesh_iterations: int = 8
+    nlp_tol: float = 1e-8
+    max_nlp_iterations: int = 3000
+    refine: bool = True
+
+
+@dataclass
+class LandingResult:
+    success: bool
+    status: str
+    trajectories: list[Trajectory]
+    """In landing order, with controls and phase indices."""
+    gate_times: dict[str, float | None]
+    landing_times: dict[str, float]
+    objective: float
+    solve_time: float
+    build_time: float
+    nlp_iterations: int
+    mesh_history: list[MeshIteration]
+    layout: PhaseLayout
+    solution: OCPSolution
+    phase_names: list[str] = field(default_factory=list)
+
+    def stats(self) -> dict:
+        return {
+            "success": self.success,
+            "status": self.status,
+            "objective": self.objective,
+            "solve_time_s": self.solve_time,
+            "build_time_s": self.build_time,
+            "nlp_iterations": self.nlp_iterations,
+            "phases": self.phase_names,
+            "mesh_iterations": [
+                {"iteration": m.iteration, "segments": list(m.segments), "degrees": [list(d) for d in m.degrees],
+                 "max_error": m.max_error, "nlp_iterations": m.nlp_iterations, "nlp_time_s": m.nlp_time,
+                 "build_time_s": m.build_time, "status": m.status}
+                for m in self.mesh_history
+            ],
+        }
+
+
+def landing_times_for(scenario: Scenario, callsigns: Sequence[str], sequencer_times: Sequence[float] | None,
+                      margin: float) -> list[float]:
+    """The scenario's fixed landing times if every aircraft has one, else the sequencer's plus a margin,
+    spaced by at least the scenario's landing spacing."""
+    fixed = [scenario.aircraft_by_callsign(cs).landing_time for cs in callsigns]
+    if all(t is not None for t in fixed):
+        return [float(t) for t in fixed]
+    if sequencer_times is None:
+        raise ValueError("landing times are needed: give them in the scenario or run the initializer")
+    times = [float(t) + margin for t in sequencer_times]
+    for i in range(1, len(times)):
+        times[i] = max(times[i], times[i - 1] + scenario.landing_spacing_s)
+    return times
+
+
+def _straight_order(scenario: Scenario) -> list[str]:
+    def key(ac):
+        return (ac.landing_time if ac.landing_time is not None else np.inf,
+                float(np.linalg.norm(ac.position - scenario.runway_state[:3])))
+    return [ac.callsign for ac in sorted(scenario.aircraft, key=key)]
+
+
+class LandingOptimizer:
+    """Builds the OCP once and re-solves it (new initial states, warm start) without rebuilding."""
+
+    def __init__(self, scenario: Scenario, guesses: list[AircraftGuess], options: LandingOptions) -> None:
+        self.scenario = scenario
+        self.options = options
+        callsigns = [g.callsign for g in guesses]
+        gate_times = None
+        if scenario.gates:
+            gate_times = [g.gate_time if g.gate_time is not None else 0.5 * g.landing_time for g in guesses]
+        self.layout = plan_layout(callsigns, [g.landing_time for g in guesses], gate_times)
+        self.landing_times = [g.landing_time for g in guesses]
+        t0 = time.perf_counter()
+        self.problem: LandingProblem = build_landing_problem(
+            scenario, self.layout, guesses, options.fixed_landing_times,
+            PhaseMesh.uniform(options.segments, options.degree))
+        self.solver = OCPSolver(self.problem.problem, OCPOptions(
+            tol=options.nlp_tol, max_iter=options.max_nlp_iterations, refine=options.refine,
+            mesh_tol=options.mesh_tol, n_min=options.n_min, n_max=options.n_max,
+            max_mesh_iterations=options.max_mesh_iterations, callback=self._report))
+        self.setup_time = time.perf_counter() - t0
+
+    @staticmethod
+    def _report(it: MeshIteration) -> None:
+        log.info("mesh iteration %d: segments %s, max error %.2e, %d NLP iterations, %.2f s NLP, %s",
+                 it.iteration, list(it.segments), it.max_error, it.nlp_iterations, it.nlp_time, it.status)
+
+    def solve(self, scenario: Scenario | None = None, warm: LandingResult | None = None) -> LandingResult:
+        """Solve for ``scenario``'s initial states (default: the one built with), optionally warm-started."""
+        scenario = scenario or self.scenario
+        params = self.problem.params(scenario, self.landing_times)
+        t0 = time.perf_counter()
+        builds_before = self.solver.n_builds
+        if warm is not None:
+            sol = self.solver.solve(params, guess=warm.solution, meshes=warm.solution.meshes)
+        else:
+            sol = self.solver.solve(params)
+        wall = time.perf_counter() - t0
+        build_time = sum(m.build_time for m in sol.mesh_history)
+        log.info("optimizer: %s in %.2f s (%d NLP builds, objective %.4f)", sol.status, wall,
+                 self.solver.n_builds - builds_before, sol.objective)
+        return self._result(sol, wall, build_time)
+
+    def _result(self, sol: OCPSolution, wall: float, build_time: float) -> LandingResult:
+        lay = self.layout
+        trajectories: list[Trajectory] = []
+        gate_times: dict[str, float | None] = {}
+        landing_times: dict[str, float] = {}
+        for i, cs in enumerate(lay.callsigns):
+            ts, xs, us, ph = [], [], [], []
+            for k, phase in enumerate(sol.phases):
+                if i not in lay.airborne(k):
+                    continue
+                j = lay.airborne(k).index(i)
+                t, x, u = phase.t, phase.x[:, 5 * j:5 * j + 5], phase.u[:, 2 * j:2 * j + 2]
+                if ts:  # phase start repeats the previous phase's end: keep one sample
+                    t, x, u = t[1:], x[1:], u[1:]
+                ts.append(t)
+                xs.append(x)
+                us.append(u)
+                ph.append(np.full(len(t), k))
+            trajectories.append(Trajectory(cs, np.concatenate(ts), np.concatenate(xs), np.concatenate(us),
+                                           np.concatenate(ph)))
+            gate_times[cs] = sol.phases[lay.event_index("gate", i)].tf if lay.has_gate else None
+            landing_times[cs] = sol.phases[lay.event_index("land", i)].tf
+        return LandingResult(
+            success=sol.success, status=sol.status, trajectories=trajectories, gate_times=gate_times,
+            landing_times=landing_times, objective=sol.objective, solve_time=wall, build_time=build_time,
+            nlp_iterations=sol.iterations, mesh_history=list(sol.mesh_history), layout=lay, solution=sol,
+            phase_names=[lay.phase_name(k) for k in range(lay.n_phases)])
+
+
+def make_guesses(scenario: Scenario, initial_plan, options: LandingOptions) -> list[AircraftGuess]:
+    """Guesses in landing order from the initializer's plan (or straight lines, per ``options.guess``)."""
+    if initial_plan is not None:
+        order = [t.callsign for t in initial_plan.trajectories]
+        seq_times = [t.landing_time for t in initial_plan.trajectories]
+    else:
+        order, seq_times = _straight_order(scenario), None
+    landing = landing_times_for(scenario, order, seq_times, options.landing_time_margin_s)
+    if options.guess == "straight" or initial_plan is None:
+        return straight_line_guess(scenario, order, landing)
+    return guess_from_initial_plan(scenario, initial_plan.trajectories, landing)
+
+
+def optimize_landing(scenario: Scenario, initial_plan=None, options: LandingOptions | None = None) -> LandingResult:
+    """One-shot: build and solve (see :class:`LandingOptimizer` for re-solving)."""
+    options = options or LandingOptions()
+    guesses = make_guesses(scenario, initial_plan, options)
+    return LandingOptimizer(scenario, guesses, options).solve()

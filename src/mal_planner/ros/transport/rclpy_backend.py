@@ -1,0 +1,230 @@
+"""rclpy backend: a thin adapter giving rclpy nodes the same API as the built-in Cyclone backend.
+
+Only imported when rclpy is importable (a sourced ROS 2 installation). Callbacks run on one
+``SingleThreadedExecutor`` per node, like the built-in backend.
+"""
+
+from __future__ import annotations
+
+import importlib
+import threading
+import time
+from pathlib import Path
+from typing import Any
+
+import rclpy
+from rclpy.executors import SingleThreadedExecutor
+from rclpy.parameter import Parameter as RclpyParameter
+from rclpy.qos import DurabilityPolicy, HistoryPolicy, ReliabilityPolicy
+from rclpy.qos import QoSProfile as RclpyQoSProfile
+
+from ._common import QOS_SERVICES, Parameter, QoSProfile, as_qos, make_logger, normalize_namespace
+
+
+def to_rclpy_qos(qos: QoSProfile | int | None) -> RclpyQoSProfile:
+    """Convert our profile to an rclpy QoSProfile."""
+    profile = as_qos(qos)
+    return RclpyQoSProfile(
+        history=HistoryPolicy.KEEP_ALL if profile.keep_all else HistoryPolicy.KEEP_LAST,
+        depth=profile.depth,
+        reliability=ReliabilityPolicy.RELIABLE if profile.reliable else ReliabilityPolicy.BEST_EFFORT,
+        durability=DurabilityPolicy.TRANSIENT_LOCAL if profile.transient_local else DurabilityPolicy.VOLATILE,
+    )
+
+
+class RclpyTypes:
+    """Message/service classes by ROS type name, imported from the generated Python packages."""
+
+    def msg(self, name: str) -> type:
+        pkg, _, cls = _split(name, "msg")
+        return getattr(importlib.import_module(f"{pkg}.msg"), cls)
+
+    def srv(self, name: str) -> Any:
+        pkg, _, cls = _split(name, "srv")
+        return getattr(importlib.import_module(f"{pkg}.srv"), cls)
+
+    def __getitem__(self, name: str) -> Any:
+        return self.srv(name) if "/srv/" in name else self.msg(name)
+
+
+def _split(name: str, kind: str) -> tuple[str, str, str]:
+    parts = name.strip("/").split("/")
+    if len(parts) == 2:
+        parts = [parts[0], kind, parts[1]]
+    return parts[0], parts[1], parts[2]
+
+
+class RclpyClient:
+    """Client wrapper whose ``call`` works whether or not another thread spins the node."""
+
+    def __init__(self, node: RclpyNode, client: Any) -> None:
+        self._node = node
+        self.client = client
+
+    def service_is_ready(self) -> bool:
+        return bool(self.client.service_is_ready())
+
+    def wait_for_service(self, timeout_sec: float | None = None) -> bool:
+        return bool(self.client.wait_for_service(timeout_sec=timeout_sec))
+
+    def call_async(self, request: Any) -> Any:
+        return self.client.call_async(request)
+
+    def call(self, request: Any, timeout_sec: float | None = None) -> Any:
+        if self._node._executor_thread == threading.get_ident():
+            msg = "Client.call() from a callback would deadlock; use call_async()"
+            raise RuntimeError(msg)
+        future = self.client.call_async(request)
+        done = threading.Event()
+        future.add_done_callback(lambda _f: done.set())
+        deadline = None if timeout_sec is None else time.monotonic() + timeout_sec
+        while not done.is_set():
+            left = 0.05 if deadline is None else min(0.05, deadline - time.monotonic())
+            if left <= 0:
+                self.client.remove_pending_request(future)
+                msg = f"service {self.client.srv_name} did not answer within {timeout_sec} s"
+                raise TimeoutError(msg)
+            if not self._node._spin_some(left):
+                done.wait(left)
+        return future.result()
+
+    def destroy(self) -> None:
+        self._node.node.destroy_client(self.client)
+
+
+class RclpyNode:
+    """An rclpy node behind the transport API (see :func:`..create_node`)."""
+
+    backend = "rclpy"
+
+    def __init__(
+        self,
+        name: str,
+        namespace: str = "",
+        *,
+        parameter_overrides: dict[str, Any] | None = None,
+        params_file: str | Path | None = None,
+    ) -> None:
+        if not rclpy.ok():
+            rclpy.init()
+        cli_args = ["--ros-args", "--params-file", str(params_file)] if params_file else None
+        self.node = rclpy.create_node(
+            name,
+            namespace=normalize_namespace(namespace),
+            parameter_overrides=[RclpyParameter(k, value=v) for k, v in (parameter_overrides or {}).items()],
+            cli_args=cli_args,
+        )
+        self.types = RclpyTypes()
+        self._logger = make_logger(name, namespace)
+        self._executor = SingleThreadedExecutor()
+        self._executor.add_node(self.node)
+        self._spin_lock = threading.Lock()
+        self._executor_thread: int | None = None
+        self._destroyed = False
+
+    def get_name(self) -> str:
+        return str(self.node.get_name())
+
+    def get_namespace(self) -> str:
+        return str(self.node.get_namespace())
+
+    def get_logger(self) -> Any:
+        return self._logger
+
+    def resolve(self, name: str) -> str:
+        return str(self.node.resolve_topic_name(name))
+
+    def declare_parameter(self, name: str, default: Any = None) -> Parameter:
+        param = self.node.declare_parameter(name, default)
+        return Parameter(name, param.value)
+
+    def get_parameter(self, name: str) -> Parameter:
+        return Parameter(name, self.node.get_parameter(name).value)
+
+    def has_parameter(self, name: str) -> bool:
+        return bool(self.node.has_parameter(name))
+
+    def set_parameter(self, name: str, value: Any) -> None:
+        self.node.set_parameters([RclpyParameter(name, value=value)])
+
+    def now(self) -> float:
+        return float(self.node.get_clock().now().nanoseconds) * 1e-9
+
+    def time_msg(self, stamp: float | None = None) -> Any:
+        ns = self.node.get_clock().now().nanoseconds if stamp is None else int(round(stamp * 1e9))
+        return self.types.msg("builtin_interfaces/msg/Time")(
+            sec=ns // 1_000_000_000, nanosec=ns % 1_000_000_000
+        )
+
+    def _cls(self, t: str | type, kind: str) -> Any:
+        return (self.types.srv(t) if kind == "srv" else self.types.msg(t)) if isinstance(t, str) else t
+
+    def create_publisher(self, msg_type: str | type, topic: str, qos: QoSProfile | int | None = None) -> Any:
+        return self.node.create_publisher(self._cls(msg_type, "msg"), topic, to_rclpy_qos(qos))
+
+    def create_subscription(self, msg_type: str | type, topic: str, callback: Any, qos: Any = None) -> Any:
+        return self.node.create_subscription(self._cls(msg_type, "msg"), topic, callback, to_rclpy_qos(qos))
+
+    def create_service(self, srv_type: str | type, name: str, callback: Any) -> Any:
+        srv = self._cls(srv_type, "srv")
+        return self.node.create_service(srv, name, callback, qos_profile=to_rclpy_qos(QOS_SERVICES))
+
+    def create_client(self, srv_type: str | type, name: str) -> RclpyClient:
+        return RclpyClient(self, self.node.create_client(self._cls(srv_type, "srv"), name))
+
+    def create_timer(self, period_sec: float, callback: Any) -> Any:
+        return self.node.create_timer(period_sec, callback)
+
+    def destroy_entity(self, ent: Any) -> None:
+        if isinstance(ent, RclpyClient):
+            ent.destroy()
+            return
+        for fn in ("destroy_publisher", "destroy_subscription", "destroy_service", "destroy_timer"):
+            if getattr(self.node, fn)(ent):
+                return
+
+    def _spin_some(self, timeout_sec: float) -> bool:
+        if not self._spin_lock.acquire(blocking=False):
+            return False
+        try:
+            self._executor_thread = threading.get_ident()
+            self._executor.spin_once(timeout_sec=timeout_sec)
+        finally:
+            self._executor_thread = None
+            self._spin_lock.release()
+        return True
+
+    def spin_once(self, timeout_sec: float | None = None) -> None:
+        if self._destroyed:
+            return
+        if not self._spin_some(3600.0 if timeout_sec is None else timeout_sec):
+            msg = "node is already spinning in another thread"
+            raise RuntimeError(msg)
+
+    def spin(self) -> None:
+        while not self._destroyed and rclpy.ok():
+            self.spin_once(0.5)
+
+    def spin_until_future_complete(self, future: Any, timeout_sec: float | None = None) -> None:
+        deadline = None if timeout_sec is None else time.monotonic() + timeout_sec
+        while not future.done() and not self._destroyed:
+            left = 0.1 if deadline is None else min(0.1, deadline - time.monotonic())
+            if left <= 0:
+                return
+            self.spin_once(left)
+
+    def shutdown(self) -> None:
+        if self._destroyed:
+            return
+        self._destroyed = True
+        self._executor.remove_node(self.node)
+        self.node.destroy_node()
+
+    destroy_node = shutdown
+    destroy = shutdown
+
+    def __enter__(self) -> RclpyNode:
+        return self
+
+    def __exit__(self, *exc: object) -> None:
+        self.shutdown()

@@ -1,0 +1,247 @@
+"""Independent verification of planned trajectories.
+
+Deliberately shares nothing with the transcription: it re-integrates each aircraft from its initial
+state under the planned controls with SciPy (tight tolerances), samples the flown trajectory densely
+and checks the airspace, the exact obstacle geometry (and every crossing of a gate plane), the
+separation of every pair of airborne aircraft, the bank angle, the gate and runway conditions.
+``verified`` is True only when every check holds within the stated tolerances.
+"""
+
+from __future__ import annotations
+
+import itertools
+import math
+from dataclasses import asdict, dataclass, field
+
+import numpy as np
+from scipy.integrate import solve_ivp
+
+from mal_planner.scenario import Scenario
+from mal_planner.trajectory import Trajectory
+
+
+@dataclass(frozen=True)
+class Tolerances:
+    """What 'holds' means, in planner units (nm, s, rad)."""
+
+    sample_dt: float = 0.05
+    """Sampling step of the flown trajectory (the issue asks for <= 0.1 s)."""
+    deviation_nm: float = 0.01
+    """Largest position difference between the solved and the re-integrated trajectory."""
+    deviation_angle: float = math.radians(1.0)
+    position_nm: float = 1e-4
+    """Slack on airspace bounds, gate hole and runway position."""
+    separation_nm: float = 1e-3
+    angle: float = math.radians(0.1)
+    """Slack on gate and runway attitudes and on the bank-angle limit."""
+    landing_time_s: float = 1e-3
+    rtol: float = 1e-10
+    atol: float = 1e-12
+
+
+@dataclass
+class AircraftCheck:
+    callsign: str
+    landing_time: float
+    max_position_deviation_nm: float
+    max_angle_deviation: float
+    bank_min_deg: float
+    bank_max_deg: float
+    n_v_min: float
+    airspace_violation_nm: float
+    obstacle_hits: list[str] = field(default_factory=list)
+    gate_events: list[dict] = field(default_factory=list)
+    runway_error: dict = field(default_factory=dict)
+
+
+@dataclass
+class PairCheck:
+    pair: str
+    min_distance_nm: float
+    at_time_s: float
+
+
+@dataclass
+class VerificationReport:
+    verified: bool
+    reasons: list[str]
+    aircraft: list[AircraftCheck]
+    pairs: list[PairCheck]
+    tolerances: Tolerances
+
+    def to_dict(self) -> dict:
+        return asdict(self)
+
+
+def _control_function(traj: Trajectory):
+    """Piecewise-linear controls between the samples the plan gives (held constant outside)."""
+    assert traj.controls is not None
+    t, u = traj.t, traj.controls
+
+    def control(time: float) -> np.ndarray:
+        return np.array([np.interp(time, t, u[:, 0]), np.interp(time, t, u[:, 1])])
+
+    return control
+
+
+def fly(traj: Trajectory, scenario: Scenario, tol: Tolerances) -> tuple[np.ndarray, np.ndarray]:
+    """Re-integrate one aircraft from its scenario initial state under the plan's controls.
+
+    Integration restarts at every sample time so that kinks of the control are honoured.
+    Returns the dense times (step <= tol.sample_dt, including the plan's samples) and states.
+    """
+    aircraft = scenario.aircraft_by_callsign(traj.callsign)
+    control = _control_function(traj)
+    model = aircraft.dynamics
+
+    def rhs(time: float, state: np.ndarray) -> np.ndarray:
+        return model.rhs(state, control(time))
+
+    t_plan = np.unique(traj.t)
+    times: list[np.ndarray] = []
+    states: list[np.ndarray] = []
+    state = aircraft.state0.astype(float)
+    for t0, t1 in zip(t_plan[:-1], t_plan[1:], strict=True):
+        n = max(2, int(math.ceil((t1 - t0) / tol.sample_dt)) + 1)
+        grid = np.linspace(t0, t1, n)
+        sol = solve_ivp(rhs, (t0, t1), state, method="DOP853", t_eval=grid, rtol=tol.rtol, atol=tol.atol)
+        if not sol.success:
+            raise RuntimeError(f"{traj.callsign}: re-integration failed at t={t0:.2f}: {sol.message}")
+        times.append(grid[:-1])
+        states.append(sol.y.T[:-1])
+        state = sol.y[:, -1]
+    times.append(t_plan[-1:])
+    states.append(state[None, :])
+    return np.concatenate(times), np.concatenate(states)
+
+
+def _gate_crossings(gate, t: np.ndarray, states: np.ndarray) -> list[dict]:
+    """Every crossing of the gate plane, linearly interpolated between dense samples."""
+    d = gate.signed_distance(states[:, :3])
+    events = []
+    for k in np.flatnonzero((d[:-1] > 0) & (d[1:] <= 0) | (d[:-1] < 0) & (d[1:] >= 0)):
+        w = d[k] / (d[k] - d[k + 1]) if d[k] != d[k + 1] else 0.0
+        point = states[k] + w * (states[k + 1] - states[k])
+        events.append({
+            "gate": gate.name,
+            "time_s": float(t[k] + w * (t[k + 1] - t[k])),
+            "position": point[:3].tolist(),
+            "in_hole": bool(gate.in_hole(point[:3])),
+            "direction_ok": bool(d[k] > 0),
+            "gamma": float(point[3]),
+            "heading": float(point[4]),
+        })
+    return events
+
+
+def _angle_error(a: float, b: float) -> float:
+    return abs(math.remainder(a - b, 2 * math.pi))
+
+
+def verify(scenario: Scenario, trajectories: list[Trajectory], tol: Tolerances | None = None,
+           fixed_landing_times: bool = True) -> VerificationReport:
+    """Check planned trajectories (with controls) against the scenario; see the module docstring."""
+    tol = tol or Tolerances()
+    reasons: list[str] = []
+    checks: list[AircraftCheck] = []
+    flown: dict[str, tuple[np.ndarray, np.ndarray]] = {}
+    for traj in trajectories:
+        cs = traj.callsign
+        if traj.controls is None:
+            raise ValueError(f"{cs}: verification needs controls")
+        aircraft = scenario.aircraft_by_callsign(cs)
+        t, x = fly(traj, scenario, tol)
+        flown[cs] = (t, x)
+        solved = traj.state_at(t)
+        pos_dev = float(np.max(np.linalg.norm(solved[:, :3] - x[:, :3], axis=1)))
+        ang_dev = float(np.max(np.abs(np.remainder(solved[:, 3:] - x[:, 3:] + np.pi, 2 * np.pi) - np.pi)))
+        if pos_dev > tol.deviation_nm:
+            reasons.append(f"{cs}: re-integrated path deviates {pos_dev:.4g} nm from the plan")
+        if ang_dev > tol.deviation_angle:
+            reasons.append(f"{cs}: re-integrated angles deviate {math.degrees(ang_dev):.3g} deg from the plan")
+        # Airspace.
+        below = scenario.airspace[:, 0] - x[:, :3]
+        above = x[:, :3] - scenario.airspace[:, 1]
+        violation = float(max(np.max(below), np.max(above), 0.0))
+        if violation > tol.position_nm:
+            reasons.append(f"{cs}: leaves the airspace by {violation:.4g} nm")
+        # Obstacles: exact containment of every sample and of every segment between samples.
+        hits = []
+        for ob in scenario.obstacles:
+            if np.any(ob.contains(x[:, :3])) or np.any(ob.segment_hits(x[:-1, :3], x[1:, :3])):
+                hits.append(ob.name)
+                reasons.append(f"{cs}: enters obstacle {ob.name!r}")
+        # Gates: every plane crossing must be in the hole, in the right direction, with the set attitude.
+        events = []
+        for gate in scenario.gates:
+            crossings = _gate_crossings(gate, t, x)
+            if not crossings and gate.signed_distance(aircraft.state0[:3]) > 0:
+                reasons.append(f"{cs}: never passes gate {gate.name!r}")
+            for ev in crossings:
+                ev["gamma_error"] = _angle_error(ev["gamma"], gate.flight_path_angle)
+                ev["heading_error"] = _angle_error(ev["heading"], gate.heading)
+                if not ev["in_hole"] or not gate.in_hole(np.array(ev["position"]), tol.position_nm):
+                    reasons.append(f"{cs}: crosses the plane of {gate.name!r} outside the hole at "
+                                   f"{np.round(ev['position'], 4).tolist()}")
+                if not ev["direction_ok"]:
+                    reasons.append(f"{cs}: crosses {gate.name!r} backwards at t={ev['time_s']:.2f} s")
+                if ev["gamma_error"] > tol.angle or ev["heading_error"] > tol.angle:
+                    reasons.append(f"{cs}: attitude at {gate.name!r} off by "
+                                   f"{math.degrees(ev['gamma_error']):.3g} / {math.degrees(ev['heading_error']):.3g} deg")
+            events.extend(crossings)
+        # Bank angle and load factors (on the plan's samples: the controls are what the plan commands).
+        n_h, n_v = traj.controls[:, 0], traj.controls[:, 1]
+        bank = np.degrees(np.arctan2(n_h, n_v))
+        limit = math.degrees(aircraft.limits.bank_angle_max + tol.angle)
+        if np.any(np.abs(bank) > limit):
+            reasons.append(f"{cs}: bank angle reaches {np.max(np.abs(bank)):.2f} deg (limit "
+                           f"{math.degrees(aircraft.limits.bank_angle_max):.1f})")
+        if np.min(n_v) < -1e-9:
+            reasons.append(f"{cs}: negative vertical load factor {np.min(n_v):.3g}")
+        # Runway.
+        final = x[-1]
+        rw = scenario.runway_state
+        runway = {
+            "position_error_nm": float(np.linalg.norm(final[:3] - rw[:3])),
+            "gamma_error": _angle_error(final[3], rw[3]),
+            "heading_error": _angle_error(final[4], rw[4]),
+        }
+        if runway["position_error_nm"] > tol.position_nm + tol.deviation_nm:
+            reasons.append(f"{cs}: ends {runway['position_error_nm']:.4g} nm from the runway")
+        if runway["gamma_error"] > tol.angle or runway["heading_error"] > tol.angle:
+            reasons.append(f"{cs}: runway attitude off by {math.degrees(runway['gamma_error']):.3g} / "
+                           f"{math.degrees(runway['heading_error']):.3g} deg")
+        if fixed_landing_times and aircraft.landing_time is not None and \
+                abs(t[-1] - aircraft.landing_time) > tol.landing_time_s:
+            reasons.append(f"{cs}: lands at {t[-1]:.3f} s, not the fixed {aircraft.landing_time:.3f} s")
+        checks.append(AircraftCheck(cs, float(t[-1]), pos_dev, ang_dev, float(np.min(bank)), float(np.max(bank)),
+                                    float(np.min(n_v)), violation, hits, events, runway))
+    # Landing-time spacing in landing order.
+    order = sorted(checks, key=lambda c: c.landing_time)
+    for a, b in itertools.pairwise(order):
+        if b.landing_time - a.landing_time < scenario.landing_spacing_s - tol.landing_time_s:
+            reasons.append(f"{a.callsign}->{b.callsign}: landings {b.landing_time - a.landing_time:.2f} s apart "
+                           f"(minimum {scenario.landing_spacing_s:.1f} s)")
+    pairs = _separation(flown, scenario, tol, reasons)
+    return VerificationReport(not reasons, reasons, checks, pairs, tol)
+
+
+def _separation(flown: dict[str, tuple[np.ndarray, np.ndarray]], scenario: Scenario, tol: Tolerances,
+                reasons: list[str]) -> list[PairCheck]:
+    """Minimum distance of every pair while both are airborne, on a common dense grid."""
+    pairs = []
+    for (a, (ta, xa)), (b, (tb, xb)) in itertools.combinations(flown.items(), 2):
+        t_end = min(ta[-1], tb[-1])
+        t_start = max(ta[0], tb[0])
+        if t_end <= t_start:
+            continue
+        grid = np.linspace(t_start, t_end, int(math.ceil((t_end - t_start) / tol.sample_dt)) + 1)
+        pa = np.stack([np.interp(grid, ta, xa[:, k]) for k in range(3)], axis=1)
+        pb = np.stack([np.interp(grid, tb, xb[:, k]) for k in range(3)], axis=1)
+        dist = np.linalg.norm(pa - pb, axis=1)
+        k = int(np.argmin(dist))
+        pairs.append(PairCheck(f"{a}-{b}", float(dist[k]), float(grid[k])))
+        if dist[k] < scenario.separation_nm - tol.separation_nm:
+            reasons.append(f"{a}-{b}: {dist[k]:.4f} nm apart at t={grid[k]:.2f} s "
+                           f"(minimum {scenario.separation_nm} nm)")
+    return pairs
