@@ -1,0 +1,266 @@
+"""The landing sequencer of chapter 4: initial trajectories for any number of aircraft.
+
+1. The shortest obstacle-free path of every aircraft from its start to the runway (the planner is run
+   ``runs_per_aircraft`` times and the shortest path kept).
+2. Aircraft are sorted by that length: the nearest lands first and keeps its path.
+3. Every later aircraft flies through a random waypoint (on a lattice of ``lattice_resolution`` nm, in
+   the airspace, outside obstacles, on its start's side of every gate, never one tried before) such that
+   its path start -> waypoint -> runway lands between ``scenario.landing_spacing_s`` and
+   ``scenario.max_landing_spacing_s`` after the previous aircraft, and the start-to-waypoint length is
+   more than half the total. For equal speeds these are the thesis's minimum and maximum DISTANCE
+   differences between successive landings (distance = speed x time). When even the direct path lands
+   later than the maximum spacing, the aircraft keeps its direct path (a warning is logged).
+4. Times follow from the constant speed: t = cumulative length / speed, t = 0 at the start.
+"""
+
+from __future__ import annotations
+
+import logging
+import time
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from mal_planner.initializer.collision import CollisionChecker
+from mal_planner.initializer.planners import PathPlanner, PlanningFailed, make_planner, path_length
+from mal_planner.initializer.smoothing import remove_repeats
+from mal_planner.scenario import Aircraft, Scenario
+
+log = logging.getLogger("mal_planner.initializer")
+
+
+@dataclass(frozen=True)
+class InitialTrajectory:
+    """One aircraft's initial path at constant speed (the optimizer's initial guess)."""
+
+    callsign: str
+    order: int
+    """Landing order, 1 = first."""
+    waypoints: np.ndarray
+    """(K, 3) path vertices in nm, no repeated consecutive points."""
+    times: np.ndarray
+    """(K,) time at each vertex in s (0 at the start)."""
+    speed: float
+    path_length: float
+    landing_time: float
+    waypoint: np.ndarray | None
+    """The sequencing waypoint (None for the first aircraft or when none was needed)."""
+    waypoint_index: int | None
+    """Index of ``waypoint`` in ``waypoints`` / ``times``."""
+    direct_path: np.ndarray
+    """The shortest path found before stretching (for plots)."""
+    gate_times: dict[str, float | None]
+    """Time at which the path crosses each gate's plane (interpolated), or None."""
+
+    def position_at(self, t: np.ndarray) -> np.ndarray:
+        """Positions (n, 3) at times ``t`` (clipped to [0, landing_time])."""
+        t = np.clip(np.asarray(t, dtype=float), 0.0, self.landing_time)
+        return np.stack([np.interp(t, self.times, self.waypoints[:, k]) for k in range(3)], axis=-1)
+
+    def sample(self, dt: float) -> tuple[np.ndarray, np.ndarray]:
+        """Times 0, dt, ..., landing_time and states (n, 5): x, y, z, flight-path angle, heading.
+
+        The angles are those of the straight segment being flown: asin(dz/ds) and atan2(dy, dx).
+        """
+        if dt <= 0:
+            raise ValueError(f"dt must be > 0, got {dt}")
+        n = int(np.floor(self.landing_time / dt + 1e-9))
+        t = np.arange(n + 1) * dt
+        if self.landing_time - t[-1] > 1e-9:
+            t = np.append(t, self.landing_time)
+        d = np.diff(self.waypoints, axis=0)
+        ds = np.linalg.norm(d, axis=1)
+        gamma = np.arcsin(np.clip(d[:, 2] / ds, -1.0, 1.0))
+        heading = np.arctan2(d[:, 1], d[:, 0])
+        seg = np.clip(np.searchsorted(self.times, t, side="right") - 1, 0, len(d) - 1)
+        return t, np.column_stack([self.position_at(t), gamma[seg], heading[seg]])
+
+
+@dataclass(frozen=True)
+class InitialPlan:
+    """Initial trajectories in landing order, with how they were made."""
+
+    trajectories: tuple[InitialTrajectory, ...]
+    planner: str
+    seed: int | None
+    timings: dict[str, float]
+    """Seconds per aircraft (by callsign) and ``"total"``."""
+    collision_checks: dict[str, int]
+
+    def by_callsign(self, callsign: str) -> InitialTrajectory:
+        for tr in self.trajectories:
+            if tr.callsign == callsign:
+                return tr
+        raise KeyError(callsign)
+
+    @property
+    def landing_order(self) -> list[str]:
+        return [tr.callsign for tr in self.trajectories]
+
+
+def timed_path(path: np.ndarray, speed: float) -> np.ndarray:
+    """Time at each vertex at constant ``speed``: cumulative length / speed, 0 at the first vertex."""
+    seg = np.linalg.norm(np.diff(path, axis=0), axis=1)
+    return np.concatenate([[0.0], np.cumsum(seg)]) / speed
+
+
+def gate_crossing_times(scenario: Scenario, path: np.ndarray, times: np.ndarray) -> dict[str, float | None]:
+    """First time the path crosses each gate's plane in its direction of travel (linear interpolation)."""
+    out: dict[str, float | None] = {}
+    for gate in scenario.gates:
+        s = gate.signed_distance(path)
+        hit = np.flatnonzero((s[:-1] > 0.0) & (s[1:] <= 0.0))
+        if hit.size == 0:
+            out[gate.name] = None
+            continue
+        i = int(hit[0])
+        f = s[i] / (s[i] - s[i + 1])
+        out[gate.name] = float(times[i] + f * (times[i + 1] - times[i]))
+    return out
+
+
+@dataclass
+class Sequencer:
+    """Chapter 4's landing sequencer. ``planner``: a spec for :func:`make_planner` or a planner object.
+
+    ``runs_per_aircraft``: planner runs for each aircraft's shortest path; ``lattice_resolution`` (nm):
+    the waypoint lattice; ``max_waypoint_draws``: lattice draws per aircraft before giving up;
+    ``checker_margin`` / ``gate_band`` / ``gate_margin``: the collision checker's options.
+    """
+
+    planner: str | PathPlanner = "multi-rrt"
+    runs_per_aircraft: int = 3
+    lattice_resolution: float = 0.01
+    max_waypoint_draws: int = 20000
+    checker_margin: float = 0.0
+    gate_band: float = 0.01
+    gate_margin: float = 0.005
+    planner_options: dict = field(default_factory=dict)
+
+    def __post_init__(self) -> None:
+        if isinstance(self.planner, str):
+            self._planner = make_planner(self.planner, **self.planner_options)
+        else:
+            self._planner = self.planner
+        if self.runs_per_aircraft < 1 or self.lattice_resolution <= 0:
+            raise ValueError("runs_per_aircraft must be >= 1 and lattice_resolution > 0")
+
+    def plan(self, scenario: Scenario, seed: int | None = None) -> InitialPlan:
+        """Initial trajectories of all aircraft; raises :class:`PlanningFailed`."""
+        rng = np.random.default_rng(seed)
+        checker = CollisionChecker.from_scenario(scenario, self.checker_margin, self.gate_band, self.gate_margin)
+        goal = np.asarray(scenario.runway_state[:3], dtype=float)
+        t_all = time.perf_counter()
+        timings: dict[str, float] = {}
+        direct: dict[str, np.ndarray] = {}
+        for ac in scenario.aircraft:
+            t0 = time.perf_counter()
+            direct[ac.callsign] = self._shortest(checker, ac.position, goal, rng)
+            timings[ac.callsign] = time.perf_counter() - t0
+            log.info("%s: shortest path %.3f nm (%d points)", ac.callsign, path_length(direct[ac.callsign]),
+                     len(direct[ac.callsign]))
+        order = sorted(scenario.aircraft, key=lambda a: path_length(direct[a.callsign]))
+        trajectories: list[InitialTrajectory] = []
+        prev_landing: float | None = None
+        for k, ac in enumerate(order, start=1):
+            t0 = time.perf_counter()
+            path, wp = direct[ac.callsign], None
+            if prev_landing is not None:
+                path, wp = self._stretch(scenario, checker, ac, direct[ac.callsign], prev_landing, rng)
+            tr = self._trajectory(scenario, ac, k, path, wp, direct[ac.callsign])
+            timings[ac.callsign] += time.perf_counter() - t0
+            log.info("%s: lands %d%s at %.1f s (path %.3f nm%s)", ac.callsign, k,
+                     {1: "st", 2: "nd", 3: "rd"}.get(k, "th"), tr.landing_time, tr.path_length,
+                     "" if wp is None else f", waypoint {np.round(wp, 3).tolist()}")
+            trajectories.append(tr)
+            prev_landing = tr.landing_time
+        timings["total"] = time.perf_counter() - t_all
+        return InitialPlan(tuple(trajectories), getattr(self._planner, "spec", type(self._planner).__name__),
+                           seed, timings, checker.counts.as_dict())
+
+    def _shortest(self, checker: CollisionChecker, start: np.ndarray, goal: np.ndarray,
+                  rng: np.random.Generator) -> np.ndarray:
+        best: np.ndarray | None = None
+        errors = []
+        for _ in range(self.runs_per_aircraft):
+            try:
+                path = self._planner.plan(checker, start, goal, rng)
+            except PlanningFailed as exc:
+                errors.append(str(exc))
+                continue
+            if best is None or path_length(path) < path_length(best):
+                best = path
+        if best is None:
+            raise PlanningFailed(errors[-1])
+        return best
+
+    def _stretch(self, scenario: Scenario, checker: CollisionChecker, ac: Aircraft, direct_path: np.ndarray,
+                 prev_landing: float, rng: np.random.Generator) -> tuple[np.ndarray, np.ndarray | None]:
+        """Path through a random lattice waypoint that meets the landing-spacing window."""
+        v = ac.speed
+        lo_len = (prev_landing + scenario.landing_spacing_s) * v
+        hi_len = (prev_landing + scenario.max_landing_spacing_s) * v
+        direct_len = path_length(direct_path)
+        if direct_len > hi_len:
+            log.warning("%s: the direct path lands %.1f s after the previous aircraft (> %.1f s); kept",
+                        ac.callsign, direct_len / v - prev_landing, scenario.max_landing_spacing_s)
+            return direct_path, None
+        start, goal = ac.position, np.asarray(scenario.runway_state[:3], dtype=float)
+        res = self.lattice_resolution
+        lo_i = np.ceil((scenario.airspace[:, 0] + 1e-12) / res).astype(np.int64) + 1
+        hi_i = np.floor((scenario.airspace[:, 1] - 1e-12) / res).astype(np.int64) - 1
+        side0 = [np.sign(g.signed_distance(start)) for g in scenario.gates]
+        tried: set[tuple[int, int, int]] = set()
+        planned = 0
+        for _ in range(self.max_waypoint_draws):
+            key = tuple(int(i) for i in rng.integers(lo_i, hi_i + 1))
+            if key in tried:
+                continue
+            tried.add(key)
+            wp = np.asarray(key, dtype=float) * res
+            d1, d2 = np.linalg.norm(wp - start), np.linalg.norm(goal - wp)
+            if d1 + d2 > hi_len or d1 + d2 < direct_len - 1e-9:  # the straight-line bound already fails
+                continue
+            if any(np.sign(g.signed_distance(wp)) != s for g, s in zip(scenario.gates, side0, strict=True)):
+                continue
+            if not checker.point_free(wp):
+                continue
+            try:
+                leg1 = self._planner.plan(checker, start, wp, rng)
+                leg1_len = path_length(leg1)
+                if leg1_len + d2 > hi_len:
+                    continue
+                leg2 = self._planner.plan(checker, wp, goal, rng)
+            except PlanningFailed:
+                continue
+            finally:
+                planned += 1
+            total = leg1_len + path_length(leg2)
+            if lo_len <= total <= hi_len and leg1_len > 0.5 * total:
+                log.debug("%s: waypoint after %d draws, %d planned", ac.callsign, len(tried), planned)
+                return remove_repeats(np.vstack([leg1, leg2])), wp
+        raise PlanningFailed(
+            f"{ac.callsign}: no waypoint gives a landing {scenario.landing_spacing_s:g}-"
+            f"{scenario.max_landing_spacing_s:g} s after the previous aircraft ({len(tried)} tried, "
+            f"{planned} planned)"
+        )
+
+    def _trajectory(self, scenario: Scenario, ac: Aircraft, order: int, path: np.ndarray,
+                    wp: np.ndarray | None, direct_path: np.ndarray) -> InitialTrajectory:
+        path = remove_repeats(path)
+        times = timed_path(path, ac.speed)
+        wp_index = None
+        if wp is not None:
+            wp_index = int(np.argmin(np.linalg.norm(path - wp, axis=1)))
+            path[wp_index] = wp
+        return InitialTrajectory(
+            callsign=ac.callsign, order=order, waypoints=path, times=times, speed=ac.speed,
+            path_length=path_length(path), landing_time=float(times[-1]), waypoint=wp, waypoint_index=wp_index,
+            direct_path=direct_path, gate_times=gate_crossing_times(scenario, path, times),
+        )
+
+
+def plan_initial(scenario: Scenario, planner: str | PathPlanner = "multi-rrt", seed: int | None = None,
+                 **options) -> InitialPlan:
+    """Convenience: ``Sequencer(planner, **options).plan(scenario, seed)``."""
+    return Sequencer(planner, **options).plan(scenario, seed)
