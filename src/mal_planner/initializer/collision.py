@@ -52,6 +52,8 @@ class CollisionChecker:
         if len(self.obstacles):
             centre = self._boxes.mean(axis=2, keepdims=True)
             self._boxes = centre + (self._boxes - centre) * (1.0 + self.margin) + np.array([-1e-9, 1e-9])
+        self._box_list = [[(float(lo), float(hi)) for lo, hi in box] for box in self._boxes]
+        self._air = [(float(lo), float(hi)) for lo, hi in self.airspace]
 
     @classmethod
     def from_scenario(
@@ -87,7 +89,25 @@ class CollisionChecker:
         return ok.reshape(pts.shape[:-1])
 
     def point_free(self, point: np.ndarray) -> bool:
-        return bool(self.points_free(np.asarray(point, dtype=float)[None])[0])
+        """Scalar fast path of :meth:`points_free` (bounding boxes first, in plain Python)."""
+        p = [float(v) for v in np.asarray(point, dtype=float).reshape(3)]
+        self.counts.calls += 1
+        self.counts.points += 1
+        if not all(lo <= v <= hi for v, (lo, hi) in zip(p, self._air, strict=True)):
+            return False
+        for ob, box in zip(self.obstacles, self._box_list, strict=True):
+            if all(lo <= v <= hi for v, (lo, hi) in zip(p, box, strict=True)) and ob.contains(
+                np.array(p), self.margin
+            ):
+                return False
+        for gate in self.gates:
+            if abs(p[gate.axis] - gate.position) <= self.gate_band and not self._in_hole(gate, p):
+                return False
+        return True
+
+    def _in_hole(self, gate: Gate, p: list[float]) -> bool:
+        m = self.gate_margin
+        return all(lo + m <= p[ax] <= hi - m for (lo, hi), ax in zip(gate.bounds, gate.other_axes, strict=True))
 
     def segments_free(self, starts: np.ndarray, ends: np.ndarray) -> np.ndarray:
         """Boolean per segment start->end (rows, shape (K, 3)); endpoints must be in the airspace.
@@ -118,7 +138,38 @@ class CollisionChecker:
         return ok
 
     def segment_free(self, start: np.ndarray, end: np.ndarray) -> bool:
-        return bool(self.segments_free(np.asarray(start)[None], np.asarray(end)[None])[0])
+        """Scalar fast path of :meth:`segments_free` (bounding boxes first, in plain Python)."""
+        a = [float(v) for v in np.asarray(start, dtype=float).reshape(3)]
+        b = [float(v) for v in np.asarray(end, dtype=float).reshape(3)]
+        self.counts.calls += 1
+        self.counts.segments += 1
+        for u, v, (lo, hi) in zip(a, b, self._air, strict=True):
+            if not (lo <= u <= hi and lo <= v <= hi):
+                return False
+        for gate in self.gates:
+            if not self._gate_legal_one(gate, a, b):
+                return False
+        lo_seg = [min(u, v) for u, v in zip(a, b, strict=True)]
+        hi_seg = [max(u, v) for u, v in zip(a, b, strict=True)]
+        for ob, box in zip(self.obstacles, self._box_list, strict=True):
+            if all(sl <= bh and sh >= bl for sl, sh, (bl, bh) in zip(lo_seg, hi_seg, box, strict=True)) and bool(
+                ob.segment_hits(np.array([a]), np.array([b]), self.margin)[0]
+            ):
+                return False
+        return True
+
+    def _gate_legal_one(self, gate: Gate, a: list[float], b: list[float]) -> bool:
+        ax, w = gate.axis, self.gate_band
+        sa, sb = a[ax] - gate.position, b[ax] - gate.position
+        if min(sa, sb) > w or max(sa, sb) < -w:
+            return True
+        if sa == sb:
+            return self._in_hole(gate, a) and self._in_hole(gate, b)
+        t1, t2 = (-w - sa) / (sb - sa), (w - sa) / (sb - sa)
+        for t in (min(max(min(t1, t2), 0.0), 1.0), min(max(max(t1, t2), 0.0), 1.0)):
+            if not self._in_hole(gate, [u + t * (v - u) for u, v in zip(a, b, strict=True)]):
+                return False
+        return True
 
     def path_free(self, path: np.ndarray) -> bool:
         """True when every vertex and every segment of the polyline (K, 3) is free."""

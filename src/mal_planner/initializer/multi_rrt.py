@@ -168,6 +168,7 @@ class MultiRRT:
             if not checker.point_free(p):
                 raise PlanningFailed(f"multi-rrt: the {name} {np.round(p, 4).tolist()} is not free")
         if checker.segment_free(start, goal):
+            self.last_iterations, self.last_trees = 0, 1
             return np.array([start, goal])
         forest = _Forest(1024, self.rebuild_every)
         i_start, i_goal = forest.add(start, 0), forest.add(goal, 1)

@@ -42,15 +42,16 @@ def available_ompl_planners() -> tuple[str, ...]:
 class OmplPlanner:
     """An ``ompl.geometric`` planner by name. Options:
 
-    ``time_limit`` (s per query), ``max_iterations`` (termination-condition polls, about one per planner
-    iteration; anytime planners such as RRT* run exactly this many unless the time limit comes first;
-    None: 20000, or 1000 for anytime planners),
+    ``time_limit`` (s per query); ``max_iterations``: anytime planners such as RRT* run in rounds of this
+    many termination-condition polls (about one per iteration) until a round ends with an exact solution
+    (None: 1000); ``iteration_cap``: polls after which any planner gives up;
     ``range`` (nm; the planner's maximum motion, None: OMPL's default), ``smooth_rounds``.
     """
 
     name: str
     time_limit: float = 5.0
     max_iterations: int | None = None
+    iteration_cap: int = 50000
     range: float | None = 1.0
     smooth_rounds: int = 40
 
@@ -59,7 +60,7 @@ class OmplPlanner:
             raise ValueError(f"unknown OMPL planner {self.name!r} (known: {', '.join(available_ompl_planners())})")
         self.spec = OMPL_PREFIX + self.name
         if self.max_iterations is None:
-            self.max_iterations = 1000 if self.name in _ANYTIME else 20000
+            self.max_iterations = 1000
         self.last_iterations = 0
 
     def plan(
@@ -116,15 +117,21 @@ class OmplPlanner:
 
         polls = [0]
         deadline = time.perf_counter() + self.time_limit
-        anytime = self.name in _ANYTIME
+        # Anytime planners report their solution only when solve() returns: run them in rounds of
+        # max_iterations polls (each solve() continues the same tree) until one has an exact solution.
+        budget = self.max_iterations if self.name in _ANYTIME else self.iteration_cap
+        limit = [0]
 
         def stop() -> bool:
             polls[0] += 1
-            if polls[0] >= self.max_iterations or time.perf_counter() > deadline:
-                return True
-            return not anytime and ss.haveExactSolutionPath()
+            return polls[0] >= min(limit[0], self.iteration_cap) or time.perf_counter() > deadline
 
-        status = ss.solve(ob.PlannerTerminationCondition(stop))
+        status = None
+        while polls[0] < self.iteration_cap and time.perf_counter() <= deadline:
+            limit[0] = polls[0] + budget
+            status = ss.solve(ob.PlannerTerminationCondition(stop))
+            if ss.haveExactSolutionPath():
+                break
         self.last_iterations = polls[0]
         if not ss.haveExactSolutionPath():
             raise PlanningFailed(

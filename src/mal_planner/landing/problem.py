@@ -49,8 +49,12 @@ def _wrap_near(target: float, reference: float) -> float:
 
 def build_landing_problem(scenario: Scenario, layout: PhaseLayout, guesses: list[AircraftGuess],
                           fixed_landing_times: bool = True, mesh: PhaseMesh | None = None,
-                          horizon: float | None = None) -> LandingProblem:
-    """Assemble the OCP; ``guesses`` are in landing order and place each phase's initial guess."""
+                          horizon: float | None = None, gate_margin: float = 0.002) -> LandingProblem:
+    """Assemble the OCP; ``guesses`` are in landing order and place each phase's initial guess.
+
+    ``gate_margin`` (nm) shrinks the hole for the gate event: the event sits on the wall's exit face, and
+    passing exactly at the hole's edge would graze the rounded p-norm pieces inside the wall's thickness.
+    """
     n = len(layout.callsigns)
     aircraft = [scenario.aircraft_by_callsign(cs) for cs in layout.callsigns]
     gate = scenario.gates[0] if scenario.gates else None
@@ -63,7 +67,7 @@ def build_landing_problem(scenario: Scenario, layout: PhaseLayout, guesses: list
         who = layout.airborne(k)
         members.append(who)
         phases.append(_phase(k, who, scenario, layout, aircraft, guesses, gate, mesh, horizon,
-                             (event_times[k - 1] if k else 0.0, event_times[k])))
+                             (event_times[k - 1] if k else 0.0, event_times[k]), gate_margin))
     n_states = len(STATE_NAMES)
 
     def index_of(k: int, i: int) -> int:
@@ -108,7 +112,7 @@ def build_landing_problem(scenario: Scenario, layout: PhaseLayout, guesses: list
     return LandingProblem(problem, layout, n, fixed_landing_times)
 
 
-def _phase(k, who, scenario, layout, aircraft, guesses, gate, mesh, horizon, guess_span) -> Phase:
+def _phase(k, who, scenario, layout, aircraft, guesses, gate, mesh, horizon, guess_span, gate_margin) -> Phase:
     states, controls = [], []
     x_lb, x_ub, u_lb, u_ub = [], [], [], []
     xf_lb, xf_ub = [], []
@@ -131,7 +135,7 @@ def _phase(k, who, scenario, layout, aircraft, guesses, gate, mesh, horizon, gue
         if end.aircraft == i and end.kind == "gate":
             flo[gate.axis] = fhi[gate.axis] = gate.position
             for (b_lo, b_hi), ax in zip(gate.bounds, gate.other_axes, strict=True):
-                flo[ax], fhi[ax] = max(flo[ax], b_lo), min(fhi[ax], b_hi)
+                flo[ax], fhi[ax] = max(flo[ax], b_lo + gate_margin), min(fhi[ax], b_hi - gate_margin)
             flo[3] = fhi[3] = gate.flight_path_angle
             flo[4] = fhi[4] = _wrap_near(gate.heading, guess_heading)
         elif end.aircraft == i and end.kind == "land":

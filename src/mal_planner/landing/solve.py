@@ -36,6 +36,10 @@ class LandingOptions:
     nlp_tol: float = 1e-8
     max_nlp_iterations: int = 3000
     refine: bool = True
+    output_dt: float = 0.25
+    gate_margin_nm: float = 0.002
+    """Keep the gate event this far inside the hole's edges (the wall pieces are rounded p-norm shapes)."""
+    """Sampling step of the output trajectories (dense samples of the solution's interpolants)."""
 
 
 @dataclass
@@ -110,7 +114,7 @@ class LandingOptimizer:
         t0 = time.perf_counter()
         self.problem: LandingProblem = build_landing_problem(
             scenario, self.layout, guesses, options.fixed_landing_times,
-            PhaseMesh.uniform(options.segments, options.degree))
+            PhaseMesh.uniform(options.segments, options.degree), gate_margin=options.gate_margin_nm)
         self.solver = OCPSolver(self.problem.problem, OCPOptions(
             tol=options.nlp_tol, max_iter=options.max_nlp_iterations, refine=options.refine,
             mesh_tol=options.mesh_tol, n_min=options.n_min, n_max=options.n_max,
@@ -149,9 +153,13 @@ class LandingOptimizer:
                 if i not in lay.airborne(k):
                     continue
                 j = lay.airborne(k).index(i)
-                t, x, u = phase.t, phase.x[:, 5 * j:5 * j + 5], phase.u[:, 2 * j:2 * j + 2]
-                if ts:  # phase start repeats the previous phase's end: keep one sample
-                    t, x, u = t[1:], x[1:], u[1:]
+                # Dense samples of the solution's own interpolants (states and controls), plus the nodes.
+                # A phase boundary appears twice: the end of one phase with the control that applied up
+                # to it, then the start of the next with the control that applies from it.
+                n = max(int(np.ceil((phase.tf - phase.t0) / self.options.output_dt)), 1) + 1
+                t = np.union1d(np.linspace(phase.t0, phase.tf, n), phase.t)
+                x_all, u_all = phase.interpolate(t)
+                x, u = x_all[:, 5 * j:5 * j + 5], u_all[:, 2 * j:2 * j + 2]
                 ts.append(t)
                 xs.append(x)
                 us.append(u)

@@ -6,7 +6,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from .lgr import lagrange_matrix, support_points
+from .lgr import lagrange_matrix, lgr_nodes, support_points
 from .mesh import MeshLayout
 
 
@@ -24,7 +24,7 @@ class PhaseSolution:
     layout: MeshLayout
 
     def interpolate(self, t: np.ndarray | float) -> tuple[np.ndarray, np.ndarray]:
-        """States from the per-segment Lagrange polynomials, controls piecewise linear.
+        """States from the per-segment Lagrange polynomials, controls from the per-segment interpolants.
 
         Returns ``x (K, nx)`` and ``u (K, nu)``; times outside the phase are clamped.
         """
@@ -36,6 +36,7 @@ class PhaseSolution:
         brk = np.asarray(lay.mesh.breaks)
         seg = np.clip(np.searchsorted(brk, frac, side="right") - 1, 0, lay.mesh.n_segments - 1)
         x = np.empty((tq.size, self.x.shape[1]))
+        u = np.empty((tq.size, self.u.shape[1]))
         for s in np.unique(seg):
             idx = np.nonzero(seg == s)[0]
             n = lay.mesh.degrees[s]
@@ -43,11 +44,9 @@ class PhaseSolution:
             a, b = brk[s], brk[s + 1]
             loc = 2.0 * (frac[idx] - a) / (b - a) - 1.0
             x[idx] = lagrange_matrix(support_points(n), loc) @ self.x[o : o + n + 1]
-        u = (
-            np.column_stack([np.interp(tq, self.t, self.u[:, j]) for j in range(self.u.shape[1])])
-            if self.u.shape[1]
-            else np.zeros((tq.size, 0))
-        )
+            # Controls: the degree N-1 interpolant through the segment's collocation points, the same
+            # control the mesh error estimate integrates with.
+            u[idx] = self.u[o : o + 1] if n == 1 else lagrange_matrix(lgr_nodes(n), loc) @ self.u[o : o + n]
         return x, u
 
 

@@ -1,0 +1,124 @@
+"""The planning pipeline shared by the CLI and the ROS node: initializer -> optimizer -> verification."""
+
+from __future__ import annotations
+
+import logging
+import time
+from dataclasses import dataclass, field
+
+from mal_planner.initializer.sequencer import InitialPlan, plan_initial
+from mal_planner.landing import LandingOptions, LandingResult
+from mal_planner.landing.solve import LandingOptimizer, make_guesses
+from mal_planner.scenario import Scenario
+from mal_planner.trajectory import Trajectory
+from mal_planner.verification import Tolerances, VerificationReport, verify
+
+log = logging.getLogger("mal_planner")
+
+
+@dataclass(frozen=True)
+class PlanOptions:
+    initializer: str = "multi-rrt"
+    """Path planner of the initializer: 'multi-rrt' or 'ompl:<planner>' (e.g. ompl:RRTConnect)."""
+    seed: int | None = 0
+    optimize: bool = True
+    verify: bool = True
+    landing: LandingOptions = field(default_factory=LandingOptions)
+    tolerances: Tolerances = field(default_factory=Tolerances)
+
+
+@dataclass
+class PlanResult:
+    scenario: Scenario
+    options: PlanOptions
+    initial: InitialPlan
+    landing: LandingResult | None
+    verification: VerificationReport | None
+    timings: dict[str, float]
+
+    @property
+    def optimized(self) -> bool:
+        return self.landing is not None and self.landing.success
+
+    @property
+    def order(self) -> list[str]:
+        return [t.callsign for t in self.initial.trajectories]
+
+    def trajectories(self) -> list[Trajectory]:
+        """The optimizer's trajectories when it succeeded, else the initializer's paths (no controls)."""
+        if self.optimized:
+            assert self.landing is not None
+            return self.landing.trajectories
+        out = []
+        for tr in self.initial.trajectories:
+            t, states = tr.sample(1.0)
+            out.append(Trajectory(tr.callsign, t, states))
+        return out
+
+    def landing_times(self) -> dict[str, float]:
+        if self.optimized:
+            assert self.landing is not None
+            return dict(self.landing.landing_times)
+        return {t.callsign: t.landing_time for t in self.initial.trajectories}
+
+    def gate_times(self) -> dict[str, float | None]:
+        if self.optimized:
+            assert self.landing is not None
+            return dict(self.landing.gate_times)
+        return {t.callsign: next(iter(t.gate_times.values()), None) for t in self.initial.trajectories}
+
+
+class Planner:
+    """Keeps the optimizer between calls so that replans reuse the NLP and warm-start."""
+
+    def __init__(self, options: PlanOptions | None = None) -> None:
+        self.options = options or PlanOptions()
+        self._optimizer: LandingOptimizer | None = None
+        self._key: tuple | None = None
+        self.last: PlanResult | None = None
+
+    def plan(self, scenario: Scenario, reuse: bool = True) -> PlanResult:
+        """Plan ``scenario``; with ``reuse`` and the same aircraft in the same order as the last
+        successful plan, skip the initializer and warm-start the optimizer from that plan."""
+        opts = self.options
+        timings: dict[str, float] = {}
+        last = self.last
+        key = tuple(sorted(a.callsign for a in scenario.aircraft)), scenario.obstacles, scenario.gates
+        warm = reuse and last is not None and last.optimized and self._key == key
+        t0 = time.perf_counter()
+        if warm:
+            assert last is not None
+            initial = last.initial
+            log.info("replanning from the previous plan (warm start)")
+        else:
+            log.info("initializer %s (seed %s) on %d aircraft", opts.initializer, opts.seed, len(scenario.aircraft))
+            initial = plan_initial(scenario, opts.initializer, seed=opts.seed)
+        timings["initializer_s"] = time.perf_counter() - t0
+        landing = None
+        if opts.optimize:
+            t1 = time.perf_counter()
+            if not warm or self._optimizer is None:
+                self._optimizer = LandingOptimizer(scenario, make_guesses(scenario, initial, opts.landing),
+                                                   opts.landing)
+                self._key = key
+                landing = self._optimizer.solve(scenario)
+            else:
+                assert last is not None and last.landing is not None
+                landing = self._optimizer.solve(scenario, warm=last.landing)
+            timings["optimizer_s"] = time.perf_counter() - t1
+        report = None
+        if landing is not None and landing.success and opts.verify:
+            t2 = time.perf_counter()
+            report = verify(scenario, landing.trajectories, opts.tolerances,
+                            fixed_landing_times=opts.landing.fixed_landing_times)
+            timings["verification_s"] = time.perf_counter() - t2
+            log.info("verification: %s", "verified" if report.verified else "; ".join(report.reasons[:5]))
+        result = PlanResult(scenario, opts, initial, landing, report, timings)
+        if result.optimized:
+            self.last = result
+        return result
+
+
+def plan(scenario: Scenario, options: PlanOptions | None = None) -> PlanResult:
+    """One-shot planning (see :class:`Planner` for replanning)."""
+    return Planner(options).plan(scenario, reuse=False)
