@@ -1,0 +1,158 @@
+"""Outputs of a plan: the JSON result (schema in the README), a validation report, PNG figures."""
+
+from __future__ import annotations
+
+import json
+import math
+from pathlib import Path
+
+import numpy as np
+
+from mal_planner.pipeline import PlanResult
+from mal_planner.trajectory import Trajectory
+
+SCHEMA = "mal-planner/plan"
+SCHEMA_VERSION = 1
+
+
+def _num(value: float | None) -> float | None:
+    return None if value is None or not math.isfinite(value) else float(value)
+
+
+def result_to_dict(result: PlanResult) -> dict:
+    """The JSON document (planner units: nm, s, rad)."""
+    initial = result.initial
+    trajectories = {t.callsign: t for t in result.trajectories()}
+    landing, gates = result.landing_times(), result.gate_times()
+    aircraft = []
+    for tr in initial.trajectories:
+        aircraft.append({
+            "callsign": tr.callsign,
+            "order": tr.order,
+            "gate_time_s": _num(gates.get(tr.callsign)),
+            "landing_time_s": _num(landing.get(tr.callsign)),
+            "initial": {
+                "path_length_nm": tr.path_length,
+                "landing_time_s": tr.landing_time,
+                "gate_times_s": {k: _num(v) for k, v in tr.gate_times.items()},
+                "waypoint": None if tr.waypoint is None else np.asarray(tr.waypoint).tolist(),
+                "waypoint_index": tr.waypoint_index,
+                "waypoints": {"t": np.asarray(tr.times).tolist(),
+                              **{k: np.asarray(tr.waypoints)[:, i].tolist() for i, k in enumerate("xyz")}},
+                "direct_path": np.asarray(tr.direct_path).tolist(),
+            },
+            "trajectory": trajectories[tr.callsign].to_dict(),
+        })
+    status = "optimal" if result.optimized else ("failed" if result.landing is not None else "initial_guess")
+    return {
+        "schema": SCHEMA,
+        "version": SCHEMA_VERSION,
+        "units": {"length": "nm", "time": "s", "angle": "rad", "speed": "nm/s"},
+        "scenario": {"name": result.scenario.name, "source": result.scenario.source},
+        "status": status,
+        "verified": bool(result.verification.verified) if result.verification else False,
+        "landing_order": result.order,
+        "initializer": {"planner": initial.planner, "seed": initial.seed, "timings_s": initial.timings,
+                        "collision_checks": initial.collision_checks},
+        "optimizer": result.landing.stats() if result.landing is not None else None,
+        "verification": result.verification.to_dict() if result.verification else None,
+        "timings_s": result.timings,
+        "aircraft": aircraft,
+    }
+
+
+def summary_table(result: PlanResult) -> str:
+    """Short text table: order, path length, gate and landing time per aircraft, and the outcome."""
+    landing, gates = result.landing_times(), result.gate_times()
+    rows = [f"{'order':>5}  {'callsign':<8} {'path (nm)':>9} {'t_gate (s)':>10} {'t_land (s)':>10}"]
+    for tr in result.initial.trajectories:
+        gate = gates.get(tr.callsign)
+        rows.append(f"{tr.order:>5}  {tr.callsign:<8} {tr.path_length:>9.3f} "
+                    f"{'-' if gate is None else f'{gate:.2f}':>10} {landing[tr.callsign]:>10.2f}")
+    if result.landing is None:
+        rows.append("initial trajectories only (optimizer not run)")
+    else:
+        lr = result.landing
+        verdict = "n/a"
+        if result.verification is not None:
+            verdict = "verified" if result.verification.verified else "NOT verified: " + "; ".join(
+                result.verification.reasons[:3])
+        rows.append(f"optimizer: {lr.status}, objective {lr.objective:.4f}, {lr.nlp_iterations} NLP iterations, "
+                    f"{lr.solve_time:.2f} s; {verdict}")
+    return "\n".join(rows)
+
+
+def validation_report(result: PlanResult) -> str:
+    """Chapter-6 style validation tables (Table 6-1 analog, separation, bank, events)."""
+    lines = [f"# Validation report: {result.scenario.name}", ""]
+    if result.landing is None or result.verification is None:
+        lines.append("No optimized trajectories to validate.")
+        return "\n".join(lines)
+    rep = result.verification
+    lines += ["## Mayer cost (Table 6-1 analog)", "", "| aircraft | t_obs (s) | t_f (s) |", "|---|---|---|"]
+    for cs in result.order:
+        g = result.landing.gate_times[cs]
+        lines.append(f"| {cs} | {'-' if g is None else f'{g:.2f}'} | {result.landing.landing_times[cs]:.2f} |")
+    lines += ["", f"Objective: {result.landing.objective:.6f}", "", "## Separation (minimum over the flight)", "",
+              "| pair | minimum distance (nm) | at t (s) |", "|---|---|---|"]
+    lines += [f"| {p.pair} | {p.min_distance_nm:.4f} | {p.at_time_s:.2f} |" for p in rep.pairs]
+    lines += ["", f"Required: {result.scenario.separation_nm} nm", "", "## Bank angle and re-integration", "",
+              "| aircraft | bank min (deg) | bank max (deg) | max deviation (nm) | runway error (nm) |",
+              "|---|---|---|---|---|"]
+    for a in rep.aircraft:
+        lines.append(f"| {a.callsign} | {a.bank_min_deg:.2f} | {a.bank_max_deg:.2f} | "
+                     f"{a.max_position_deviation_nm:.2e} | {a.runway_error.get('position_error_nm', float('nan')):.2e} |")
+    lines += ["", "## Gate events", "", "| aircraft | t (s) | x (nm) | z (nm) | gamma (deg) | heading (deg) |",
+              "|---|---|---|---|---|---|"]
+    for a in rep.aircraft:
+        for ev in a.gate_events:
+            x, _, z = ev["position"]
+            lines.append(f"| {a.callsign} | {ev['time_s']:.2f} | {x:.4f} | {z:.4f} | "
+                         f"{math.degrees(ev['gamma']):.3f} | {math.degrees(ev['heading']):.3f} |")
+    lines += ["", f"**verified: {str(rep.verified).lower()}**"]
+    lines += [f"- {r}" for r in rep.reasons]
+    return "\n".join(lines) + "\n"
+
+
+def write_figures(result: PlanResult, out_dir: Path) -> list[Path]:
+    """PNG figures like the thesis's 4-1..4-4 (initializer) and 6-1..6-14 (optimizer)."""
+    from mal_planner import plots  # matplotlib is only needed here
+
+    sc = result.scenario
+    written: list[Path] = []
+    initial = [Trajectory(t.callsign, *t.sample(1.0)) for t in result.initial.trajectories]
+    direct = {t.callsign: np.asarray(t.direct_path) for t in result.initial.trajectories}
+    written.append(plots.save(plots.figure_paths_3d(sc, initial, direct, f"{sc.name}: initial paths (RRT + "
+                                                    "sequencer; dashed: shortest paths)"),
+                              out_dir / "initial_paths_3d.png"))
+    for key in "xyz":
+        written.append(plots.save(plots.figure_series(initial, key), out_dir / f"initial_{key}.png"))
+    if result.optimized:
+        final = result.trajectories()
+        written.append(plots.save(plots.figure_paths_3d(sc, final, None, f"{sc.name}: optimal trajectories "
+                                                        "(colour = phase)"), out_dir / "paths_3d.png"))
+        written.append(plots.save(plots.figure_yz(sc, final), out_dir / "yz_view.png"))
+        for key in ("x", "y", "z", "gamma", "heading"):
+            written.append(plots.save(plots.figure_series(final, key), out_dir / f"{key}.png"))
+        for tr in final:
+            limit = sc.aircraft_by_callsign(tr.callsign).limits.bank_angle_max
+            written.append(plots.save(plots.figure_controls(tr, limit), out_dir / f"controls_{tr.callsign}.png"))
+        if result.verification is not None and result.verification.pairs:
+            pairs = [(p.pair, p.min_distance_nm) for p in result.verification.pairs]
+            written.append(plots.save(plots.figure_min_distance(pairs, sc.separation_nm),
+                                      out_dir / "min_distance.png"))
+    return written
+
+
+def write_outputs(result: PlanResult, out_dir: Path, figures: bool = True) -> list[Path]:
+    """Write plan.json, report.md and (optionally) the figures into ``out_dir``; return the paths."""
+    out_dir = Path(out_dir)
+    out_dir.mkdir(parents=True, exist_ok=True)
+    json_path = out_dir / "plan.json"
+    json_path.write_text(json.dumps(result_to_dict(result), indent=1, allow_nan=False) + "\n", encoding="utf-8")
+    report_path = out_dir / "report.md"
+    report_path.write_text(validation_report(result), encoding="utf-8")
+    written = [json_path, report_path]
+    if figures:
+        written += write_figures(result, out_dir)
+    return written
