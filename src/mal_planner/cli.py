@@ -50,7 +50,7 @@ def main(argv: list[str] | None = None) -> int:
         return 2
     # Imported after argument parsing: CasADi and OMPL take a moment to load.
     from mal_planner.initializer import PlanningFailed, known_specs
-    from mal_planner.pipeline import PlanOptions, Planner
+    from mal_planner.pipeline import Planner, PlanOptions
     from mal_planner.report import summary_table, write_outputs
 
     if args.initializer not in known_specs():

@@ -8,7 +8,7 @@ from dataclasses import dataclass, field
 
 from mal_planner.initializer.sequencer import InitialPlan, plan_initial
 from mal_planner.landing import LandingOptions, LandingResult
-from mal_planner.landing.solve import LandingOptimizer, make_guesses
+from mal_planner.landing.solve import LandingOptimizer, make_guesses, shift_guesses
 from mal_planner.scenario import Scenario
 from mal_planner.trajectory import Trajectory
 from mal_planner.verification import Tolerances, VerificationReport, verify
@@ -35,6 +35,8 @@ class PlanResult:
     landing: LandingResult | None
     verification: VerificationReport | None
     timings: dict[str, float]
+    start_time: float = 0.0
+    """Clock time of the initial states; every time in the result is relative to it."""
 
     @property
     def optimized(self) -> bool:
@@ -69,7 +71,13 @@ class PlanResult:
 
 
 class Planner:
-    """Keeps the optimizer between calls so that replans reuse the NLP and warm-start."""
+    """Keeps the optimizer between calls so that replans reuse the NLP and warm-start.
+
+    A replan (same aircraft, obstacles and gates as the last successful plan) skips the initializer: the
+    previous optimal trajectories, shifted to the new start time, are the initial guess and keep their
+    absolute landing times; the cached NLP is reused unless the order of the events changed (e.g. an
+    aircraft has passed the gate since).
+    """
 
     def __init__(self, options: PlanOptions | None = None) -> None:
         self.options = options or PlanOptions()
@@ -77,19 +85,19 @@ class Planner:
         self._key: tuple | None = None
         self.last: PlanResult | None = None
 
-    def plan(self, scenario: Scenario, reuse: bool = True) -> PlanResult:
-        """Plan ``scenario``; with ``reuse`` and the same aircraft in the same order as the last
-        successful plan, skip the initializer and warm-start the optimizer from that plan."""
+    def plan(self, scenario: Scenario, reuse: bool = True, start_time: float = 0.0) -> PlanResult:
+        """Plan ``scenario`` whose initial states hold at ``start_time`` (any clock, in seconds)."""
         opts = self.options
         timings: dict[str, float] = {}
         last = self.last
         key = tuple(sorted(a.callsign for a in scenario.aircraft)), scenario.obstacles, scenario.gates
-        warm = reuse and last is not None and last.optimized and self._key == key
+        replan = (reuse and opts.optimize and last is not None and last.landing is not None and self._key == key
+                  and self._optimizer is not None and start_time >= last.start_time)
         t0 = time.perf_counter()
-        if warm:
+        if replan:
             assert last is not None
             initial = last.initial
-            log.info("replanning from the previous plan (warm start)")
+            log.info("replanning %.1f s after the previous plan (warm start)", start_time - last.start_time)
         else:
             log.info("initializer %s (seed %s) on %d aircraft", opts.initializer, opts.seed, len(scenario.aircraft))
             initial = plan_initial(scenario, opts.initializer, seed=opts.seed)
@@ -97,23 +105,29 @@ class Planner:
         landing = None
         if opts.optimize:
             t1 = time.perf_counter()
-            if not warm or self._optimizer is None:
+            if replan:
+                assert last is not None and last.landing is not None and self._optimizer is not None
+                guesses = shift_guesses(last.landing, start_time - last.start_time)
+                if self._optimizer.accepts(scenario, guesses):
+                    landing = self._optimizer.solve(scenario, warm=last.landing, guesses=guesses)
+                else:
+                    log.info("the order of gate passages and landings changed: new NLP")
+                    self._optimizer = LandingOptimizer(scenario, guesses, opts.landing)
+                    landing = self._optimizer.solve(scenario)
+            else:
                 self._optimizer = LandingOptimizer(scenario, make_guesses(scenario, initial, opts.landing),
                                                    opts.landing)
                 self._key = key
                 landing = self._optimizer.solve(scenario)
-            else:
-                assert last is not None and last.landing is not None
-                landing = self._optimizer.solve(scenario, warm=last.landing)
             timings["optimizer_s"] = time.perf_counter() - t1
         report = None
         if landing is not None and landing.success and opts.verify:
             t2 = time.perf_counter()
-            report = verify(scenario, landing.trajectories, opts.tolerances,
-                            fixed_landing_times=opts.landing.fixed_landing_times)
+            fixed = landing.required_landing_times if opts.landing.fixed_landing_times else None
+            report = verify(scenario, landing.trajectories, opts.tolerances, landing_times=fixed)
             timings["verification_s"] = time.perf_counter() - t2
             log.info("verification: %s", "verified" if report.verified else "; ".join(report.reasons[:5]))
-        result = PlanResult(scenario, opts, initial, landing, report, timings)
+        result = PlanResult(scenario, opts, initial, landing, report, timings, start_time)
         if result.optimized:
             self.last = result
         return result

@@ -50,31 +50,43 @@ class PhaseLayout:
         """Aircraft (landing-order indices) flying during ``phase``."""
         return [i for i in range(len(self.callsigns)) if self.event_index("land", i) >= phase]
 
+    def has_gate_event(self, aircraft: int) -> bool:
+        return any(ev.kind == "gate" and ev.aircraft == aircraft for ev in self.events)
+
     def approaching(self, phase: int, aircraft: int) -> bool:
         """True while ``aircraft`` has not passed its gate by the end of ``phase``."""
-        return self.has_gate and self.event_index("gate", aircraft) >= phase
+        return self.has_gate_event(aircraft) and self.event_index("gate", aircraft) >= phase
+
+    def signature(self) -> tuple:
+        """What the NLP's structure depends on (event kinds and aircraft, in order)."""
+        return self.callsigns, tuple((ev.kind, ev.aircraft) for ev in self.events), self.has_gate
 
     def phase_name(self, phase: int) -> str:
         ev = self.events[phase]
         return f"P{phase + 1}_{ev.kind}_{self.callsigns[ev.aircraft]}"
 
 
-def plan_layout(callsigns: list[str], landing_times: list[float], gate_times: list[float] | None) -> PhaseLayout:
+def plan_layout(callsigns: list[str], landing_times: list[float],
+                gate_times: list[float | None] | None) -> PhaseLayout:
     """Order the events by their guessed times, keeping gates and landings each in landing order.
 
-    Gate passages follow the landing order, each aircraft passes its gate before it lands; ties and
-    guesses that contradict these rules are resolved by the rules.
+    ``gate_times`` is None without a gate; an entry is None for an aircraft already past the gate (a
+    replan), which then has no gate event. Gate passages follow the landing order, each aircraft passes
+    its gate before it lands; guesses that contradict these rules are resolved by the rules.
     """
     n = len(callsigns)
-    gates = list(gate_times) if gate_times is not None else []
     lands = list(landing_times)
     for i in range(1, n):  # monotone in landing order
         lands[i] = max(lands[i], lands[i - 1] + 1e-3)
-        if gates:
-            gates[i] = max(gates[i], gates[i - 1] + 1e-3)
     events = [Event("land", i, lands[i]) for i in range(n)]
-    if gates:
-        events += [Event("gate", i, min(gates[i], lands[i] - 1e-3)) for i in range(n)]
+    if gate_times is not None:
+        previous = 0.0
+        for i in range(n):
+            if gate_times[i] is None:
+                continue
+            t_gate = min(max(gate_times[i], previous + 1e-3), lands[i] - 1e-3)
+            events.append(Event("gate", i, t_gate))
+            previous = t_gate
     # Sort by time; at equal times a gate comes before a landing, lower landing order first.
     events.sort(key=lambda e: (e.time_guess, e.kind != "gate", e.aircraft))
-    return PhaseLayout(tuple(callsigns), tuple(events), bool(gates))
+    return PhaseLayout(tuple(callsigns), tuple(events), gate_times is not None)

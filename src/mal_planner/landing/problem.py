@@ -94,11 +94,11 @@ def build_landing_problem(scenario: Scenario, layout: PhaseLayout, guesses: list
     lb = [0.0] * n_eq + spacing
     ub = [0.0] * n_eq + [math.inf] * len(spacing)
 
+    gated = [i for i in range(n) if layout.has_gate_event(i)]
+
     def mayer(E, p):
         if fixed_landing_times:
-            if not layout.has_gate:
-                return ca.SX(0.0)
-            return -sum(E[layout.event_index("gate", i)].tf for i in range(n))
+            return -sum(E[layout.event_index("gate", i)].tf for i in gated) if gated else 0.0
         return sum(E[layout.event_index("land", i)].tf for i in range(n))
 
     problem = Problem(phases=phases, n_params=n * n_states + n, mayer=mayer, events=events,
@@ -132,7 +132,7 @@ def _phase(k, who, scenario, layout, aircraft, guesses, gate, mesh, horizon, gue
         x_ub += hi
         flo, fhi = list(lo), list(hi)
         guess_heading = float(guesses[i].state_at(np.array([guess_span[1]]))[0, 4])
-        if end.aircraft == i and end.kind == "gate":
+        if end.aircraft == i and end.kind == "gate" and gate is not None:
             flo[gate.axis] = fhi[gate.axis] = gate.position
             for (b_lo, b_hi), ax in zip(gate.bounds, gate.other_axes, strict=True):
                 flo[ax], fhi[ax] = max(flo[ax], b_lo + gate_margin), min(fhi[ax], b_hi - gate_margin)
@@ -149,7 +149,12 @@ def _phase(k, who, scenario, layout, aircraft, guesses, gate, mesh, horizon, gue
     n_ac = len(who)
     models = [aircraft[i].dynamics for i in who]
     limits = [aircraft[i].limits for i in who]
-    obstacles = scenario.obstacles
+    # An obstacle matters to an aircraft in this phase only if it overlaps the box the state bounds allow
+    # (e.g. the wall, which lies on the approach side of its gate, is irrelevant after the gate).
+    relevant = [
+        [ob for ob in scenario.obstacles if _overlaps(ob.bounding_box(), x_lb[5 * j:5 * j + 3], x_ub[5 * j:5 * j + 3])]
+        for j in range(len(who))
+    ]
     pairs = list(itertools.combinations(range(n_ac), 2))
 
     def dynamics(x, u, t, p):
@@ -166,7 +171,9 @@ def _phase(k, who, scenario, layout, aircraft, guesses, gate, mesh, horizon, gue
         out = []
         for j in range(n_ac):
             px, py, pz = x[5 * j], x[5 * j + 1], x[5 * j + 2]
-            out += [ob.log_pnorm(px, py, pz) for ob in obstacles]
+            # ln(F)/p = ln of the p-norm: the thesis's constraint divided by p, the same feasible set with
+            # p times smaller derivatives (p = 50 for the wall).
+            out += [ob.log_pnorm(px, py, pz) / ob.p for ob in relevant[j]]
             out.append(bank_limit_residuals(u[2 * j], u[2 * j + 1], limits[j].bank_angle_max))
         for a, b in pairs:
             d = x[5 * a:5 * a + 3] - x[5 * b:5 * b + 3]
@@ -174,16 +181,13 @@ def _phase(k, who, scenario, layout, aircraft, guesses, gate, mesh, horizon, gue
         return ca.vertcat(*out)
 
     p_lb, p_ub = [], []
-    for _ in range(n_ac):
-        p_lb += [0.0] * len(obstacles) + [-math.inf, -math.inf]
-        p_ub += [math.inf] * len(obstacles) + [0.0, 0.0]
+    for j in range(n_ac):
+        p_lb += [0.0] * len(relevant[j]) + [-math.inf, -math.inf]
+        p_ub += [math.inf] * len(relevant[j]) + [0.0, 0.0]
     sep2 = scenario.separation_nm**2
     p_lb += [sep2] * len(pairs)
     p_ub += [math.inf] * len(pairs)
 
-    t_guess = np.linspace(guess_span[0], guess_span[1], 25)
-    xg = np.hstack([guesses[i].state_at(t_guess) for i in who])
-    ug = np.hstack([_clip_controls(guesses[i], aircraft[i], t_guess) for i in who])
     return Phase(
         name=layout.phase_name(k),
         states=states,
@@ -202,9 +206,26 @@ def _phase(k, who, scenario, layout, aircraft, guesses, gate, mesh, horizon, gue
         t0_bounds=(0.0, 0.0) if k == 0 else (0.0, horizon),
         tf_bounds=(0.0, horizon),
         min_duration=1e-2,
-        guess=PhaseGuess(t=t_guess, x=xg, u=ug),
+        guess=phase_guess(who, aircraft, guesses, guess_span),
         mesh=mesh,
     )
+
+
+def phase_guess(who: list[int], aircraft: list, guesses: list[AircraftGuess], span: tuple[float, float],
+                samples: int = 25) -> PhaseGuess:
+    """The stacked guess of the aircraft ``who`` over the phase's guessed time span."""
+    t = np.linspace(span[0], span[1], samples)
+    x = np.hstack([guesses[i].state_at(t) for i in who])
+    u = np.hstack([_clip_controls(guesses[i], aircraft[i], t) for i in who])
+    return PhaseGuess(t=t, x=x, u=u)
+
+
+def phase_guesses(scenario: Scenario, layout: PhaseLayout, guesses: list[AircraftGuess]) -> list[PhaseGuess]:
+    """Per-phase guesses for ``layout`` (e.g. to warm-start a cached NLP from shifted trajectories)."""
+    aircraft = [scenario.aircraft_by_callsign(cs) for cs in layout.callsigns]
+    times = [0.0] + [ev.time_guess for ev in layout.events]
+    return [phase_guess(layout.airborne(k), aircraft, guesses, (times[k], times[k + 1]))
+            for k in range(layout.n_phases)]
 
 
 def _clip_controls(guess: AircraftGuess, ac, t: np.ndarray) -> np.ndarray:
@@ -214,3 +235,8 @@ def _clip_controls(guess: AircraftGuess, ac, t: np.ndarray) -> np.ndarray:
     cap = np.tan(ac.limits.bank_angle_max) * u[:, 1]
     u[:, 0] = np.clip(u[:, 0], np.maximum(-cap, ac.limits.n_h[0]), np.minimum(cap, ac.limits.n_h[1]))
     return u
+
+
+def _overlaps(box: np.ndarray, lo: list[float], hi: list[float]) -> bool:
+    """True if the (3, 2) box and the bounds [lo, hi] share a volume (not just a face)."""
+    return all(box[k, 0] < hi[k] and box[k, 1] > lo[k] for k in range(3))

@@ -10,14 +10,27 @@ from typing import Literal
 
 import numpy as np
 
+from mal_planner.dynamics import ControlLimits
 from mal_planner.landing.guess import AircraftGuess, guess_from_initial_plan, straight_line_guess
 from mal_planner.landing.layout import PhaseLayout, plan_layout
-from mal_planner.landing.problem import LandingProblem, build_landing_problem
+from mal_planner.landing.problem import LandingProblem, build_landing_problem, phase_guesses
 from mal_planner.ocp import MeshIteration, OCPOptions, OCPSolution, OCPSolver, PhaseMesh
 from mal_planner.scenario import Scenario
 from mal_planner.trajectory import Trajectory
 
 log = logging.getLogger("mal_planner.optimizer")
+
+
+LANDING_IPOPT: dict = {
+    # The initial guess is already close (the initializer's obstacle-free paths): start with a small
+    # barrier and little push off the bounds. Measured on scenarios/thesis.yaml (benchmarks/bench_landing.py):
+    # 61 -> 44 IPOPT iterations. AMD ordering and a smaller MUMPS workspace cut the time per iteration.
+    "mu_init": 1e-4,
+    "bound_push": 1e-5,
+    "bound_frac": 1e-5,
+    "mumps_pivot_order": 0,
+    "mumps_mem_percent": 100,
+}
 
 
 @dataclass(frozen=True)
@@ -38,6 +51,8 @@ class LandingOptions:
     refine: bool = True
     output_dt: float = 0.25
     gate_margin_nm: float = 0.002
+    ipopt: dict = field(default_factory=lambda: dict(LANDING_IPOPT))
+    """IPOPT options on top of the engine's defaults (see LANDING_IPOPT)."""
     """Keep the gate event this far inside the hole's edges (the wall pieces are rounded p-norm shapes)."""
     """Sampling step of the output trajectories (dense samples of the solution's interpolants)."""
 
@@ -58,6 +73,8 @@ class LandingResult:
     layout: PhaseLayout
     solution: OCPSolution
     phase_names: list[str] = field(default_factory=list)
+    required_landing_times: dict[str, float] = field(default_factory=dict)
+    """The landing times the problem was given (fixed mode), relative to the plan start."""
 
     def stats(self) -> dict:
         return {
@@ -75,6 +92,20 @@ class LandingResult:
                 for m in self.mesh_history
             ],
         }
+
+
+def project_controls(u: np.ndarray, limits: ControlLimits) -> np.ndarray:
+    """Saturate interpolated controls to the limits.
+
+    The NLP enforces the bounds and the bank cone at the collocation points; the degree N-1 control
+    interpolant between them can overshoot slightly. The commanded controls are the saturated ones (the
+    verification re-integrates with exactly these, so any effect shows up there).
+    """
+    out = u.copy()
+    out[:, 1] = np.clip(out[:, 1], *limits.n_v)
+    cap = np.tan(limits.bank_angle_max) * out[:, 1]
+    out[:, 0] = np.clip(out[:, 0], np.maximum(-cap, limits.n_h[0]), np.minimum(cap, limits.n_h[1]))
+    return out
 
 
 def landing_times_for(scenario: Scenario, callsigns: Sequence[str], sequencer_times: Sequence[float] | None,
@@ -100,16 +131,15 @@ def _straight_order(scenario: Scenario) -> list[str]:
 
 
 class LandingOptimizer:
-    """Builds the OCP once and re-solves it (new initial states, warm start) without rebuilding."""
+    """Builds the OCP once and re-solves it (new initial states, warm start) without rebuilding.
+
+    Times are relative to the plan start (t = 0 at the scenario's initial states).
+    """
 
     def __init__(self, scenario: Scenario, guesses: list[AircraftGuess], options: LandingOptions) -> None:
         self.scenario = scenario
         self.options = options
-        callsigns = [g.callsign for g in guesses]
-        gate_times = None
-        if scenario.gates:
-            gate_times = [g.gate_time if g.gate_time is not None else 0.5 * g.landing_time for g in guesses]
-        self.layout = plan_layout(callsigns, [g.landing_time for g in guesses], gate_times)
+        self.layout = layout_for(scenario, guesses)
         self.landing_times = [g.landing_time for g in guesses]
         t0 = time.perf_counter()
         self.problem: LandingProblem = build_landing_problem(
@@ -118,31 +148,42 @@ class LandingOptimizer:
         self.solver = OCPSolver(self.problem.problem, OCPOptions(
             tol=options.nlp_tol, max_iter=options.max_nlp_iterations, refine=options.refine,
             mesh_tol=options.mesh_tol, n_min=options.n_min, n_max=options.n_max,
-            max_mesh_iterations=options.max_mesh_iterations, callback=self._report))
+            max_mesh_iterations=options.max_mesh_iterations, ipopt=dict(options.ipopt), callback=self._report))
         self.setup_time = time.perf_counter() - t0
+
+    def accepts(self, scenario: Scenario, guesses: list[AircraftGuess]) -> bool:
+        """True if the cached NLP fits (same aircraft, obstacles, gates and event order)."""
+        return (scenario.obstacles == self.scenario.obstacles and scenario.gates == self.scenario.gates
+                and layout_for(scenario, guesses).signature() == self.layout.signature())
 
     @staticmethod
     def _report(it: MeshIteration) -> None:
         log.info("mesh iteration %d: segments %s, max error %.2e, %d NLP iterations, %.2f s NLP, %s",
                  it.iteration, list(it.segments), it.max_error, it.nlp_iterations, it.nlp_time, it.status)
 
-    def solve(self, scenario: Scenario | None = None, warm: LandingResult | None = None) -> LandingResult:
-        """Solve for ``scenario``'s initial states (default: the one built with), optionally warm-started."""
+    def solve(self, scenario: Scenario | None = None, warm: LandingResult | None = None,
+              guesses: list[AircraftGuess] | None = None) -> LandingResult:
+        """Solve for ``scenario``'s initial states (default: the one built with).
+
+        ``guesses`` (e.g. the previous plan shifted in time, see :func:`shift_guesses`) replace the
+        initial guess and carry the landing times; ``warm`` reuses that result's meshes, so a replan
+        normally needs no new NLP at all.
+        """
         scenario = scenario or self.scenario
-        params = self.problem.params(scenario, self.landing_times)
+        landing_times = [g.landing_time for g in guesses] if guesses is not None else self.landing_times
+        params = self.problem.params(scenario, landing_times)
         t0 = time.perf_counter()
         builds_before = self.solver.n_builds
-        if warm is not None:
-            sol = self.solver.solve(params, guess=warm.solution, meshes=warm.solution.meshes)
-        else:
-            sol = self.solver.solve(params)
+        phase_init = phase_guesses(scenario, layout_for(scenario, guesses), guesses) if guesses else None
+        meshes = warm.solution.meshes if warm is not None else None
+        sol = self.solver.solve(params, guess=phase_init, meshes=meshes)
         wall = time.perf_counter() - t0
         build_time = sum(m.build_time for m in sol.mesh_history)
         log.info("optimizer: %s in %.2f s (%d NLP builds, objective %.4f)", sol.status, wall,
                  self.solver.n_builds - builds_before, sol.objective)
-        return self._result(sol, wall, build_time)
+        return self._result(sol, wall, build_time, landing_times)
 
-    def _result(self, sol: OCPSolution, wall: float, build_time: float) -> LandingResult:
+    def _result(self, sol: OCPSolution, wall: float, build_time: float, required: list[float]) -> LandingResult:
         lay = self.layout
         trajectories: list[Trajectory] = []
         gate_times: dict[str, float | None] = {}
@@ -159,20 +200,49 @@ class LandingOptimizer:
                 n = max(int(np.ceil((phase.tf - phase.t0) / self.options.output_dt)), 1) + 1
                 t = np.union1d(np.linspace(phase.t0, phase.tf, n), phase.t)
                 x_all, u_all = phase.interpolate(t)
-                x, u = x_all[:, 5 * j:5 * j + 5], u_all[:, 2 * j:2 * j + 2]
+                x = x_all[:, 5 * j:5 * j + 5]
+                u = project_controls(u_all[:, 2 * j:2 * j + 2], self.scenario.aircraft_by_callsign(cs).limits)
                 ts.append(t)
                 xs.append(x)
                 us.append(u)
                 ph.append(np.full(len(t), k))
             trajectories.append(Trajectory(cs, np.concatenate(ts), np.concatenate(xs), np.concatenate(us),
                                            np.concatenate(ph)))
-            gate_times[cs] = sol.phases[lay.event_index("gate", i)].tf if lay.has_gate else None
+            gate_times[cs] = sol.phases[lay.event_index("gate", i)].tf if lay.has_gate_event(i) else None
             landing_times[cs] = sol.phases[lay.event_index("land", i)].tf
         return LandingResult(
             success=sol.success, status=sol.status, trajectories=trajectories, gate_times=gate_times,
             landing_times=landing_times, objective=sol.objective, solve_time=wall, build_time=build_time,
             nlp_iterations=sol.iterations, mesh_history=list(sol.mesh_history), layout=lay, solution=sol,
-            phase_names=[lay.phase_name(k) for k in range(lay.n_phases)])
+            phase_names=[lay.phase_name(k) for k in range(lay.n_phases)],
+            required_landing_times=dict(zip(lay.callsigns, required, strict=True)))
+
+
+def layout_for(scenario: Scenario, guesses: list[AircraftGuess]) -> PhaseLayout:
+    """Phase layout from guesses; an aircraft already past the gate gets no gate event."""
+    gate = scenario.gates[0] if scenario.gates else None
+    gate_times: list[float | None] | None = None
+    if gate is not None:
+        gate_times = []
+        for g in guesses:
+            past = gate.signed_distance(scenario.aircraft_by_callsign(g.callsign).position) <= 0.0
+            gate_times.append(None if past else (g.gate_time if g.gate_time is not None else 0.5 * g.landing_time))
+    return plan_layout([g.callsign for g in guesses], [g.landing_time for g in guesses], gate_times)
+
+
+def shift_guesses(previous: LandingResult, dt: float) -> list[AircraftGuess]:
+    """The previous plan seen from ``dt`` seconds later: times shifted, the past cut off."""
+    out = []
+    for tr in previous.trajectories:
+        keep = tr.t >= dt
+        t = np.concatenate([[dt], tr.t[keep]]) - dt
+        states = np.vstack([tr.state_at(dt)[None, :], tr.states[keep]])
+        states[:, 4] = np.unwrap(states[:, 4])
+        t, idx = np.unique(t, return_index=True)
+        gate = previous.gate_times.get(tr.callsign)
+        out.append(AircraftGuess(tr.callsign, t, states[idx], previous.landing_times[tr.callsign] - dt,
+                                 None if gate is None or gate - dt <= 0.0 else gate - dt))
+    return out
 
 
 def make_guesses(scenario: Scenario, initial_plan, options: LandingOptions) -> list[AircraftGuess]:

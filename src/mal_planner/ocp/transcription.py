@@ -37,7 +37,7 @@ class GuessSource(Protocol):
 def _col(value: object) -> ca.SX:
     if isinstance(value, list | tuple):
         return ca.vertcat(*value) if value else ca.SX(0, 1)
-    return ca.SX(value) if not isinstance(value, ca.SX) else value
+    return value if isinstance(value, (ca.SX, ca.MX)) else ca.DM(value)
 
 
 def phase_function(phase: Phase, n_params: int) -> ca.Function:
@@ -96,7 +96,7 @@ class Transcription:
         t_start = time.perf_counter()
         self.problem = problem
         self.meshes = tuple(meshes)
-        p = ca.SX.sym("p", problem.n_params)
+        p = ca.MX.sym("p", problem.n_params)
         w_parts: list[ca.SX] = []
         lbw: list[np.ndarray] = []
         ubw: list[np.ndarray] = []
@@ -107,20 +107,20 @@ class Transcription:
         qs: list[ca.SX] = []
         self.slots: list[_PhaseSlots] = []
         nw = 0
-        cost = ca.SX(0)
+        cost = ca.MX(0)
         for ph, mesh, fun in zip(problem.phases, self.meshes, funcs, strict=True):
             lay = layout(mesh)
             nx, nu, nk, nc = ph.nx, ph.nu, lay.n_nodes, lay.n_col
             b = ph.bounds()
             sx, su = ph.scales()
-            z = ca.SX.sym(f"{ph.name}_x", nx, nk)
-            v = ca.SX.sym(f"{ph.name}_u", nu, nc)
-            t0 = ca.SX.sym(f"{ph.name}_t0")
-            tf = ca.SX.sym(f"{ph.name}_tf")
+            z = ca.MX.sym(f"{ph.name}_x", nx, nk)
+            v = ca.MX.sym(f"{ph.name}_u", nu, nc)
+            t0 = ca.MX.sym(f"{ph.name}_t0")
+            tf = ca.MX.sym(f"{ph.name}_tf")
             # Half the phase duration, one copy per collocation point chained by equalities: each defect
             # row then depends on its own copy, not on t0/tf, which keeps the KKT matrix free of dense
             # columns (measured: 17x less fill-in in the factorisation on the landing problem).
-            h = ca.SX.sym(f"{ph.name}_h", nc)
+            h = ca.MX.sym(f"{ph.name}_h", nc)
             w_parts += [ca.vec(z), ca.vec(v), t0, tf, h]
             self.slots.append(
                 _PhaseSlots(
@@ -148,7 +148,7 @@ class Transcription:
             xs = ca.mtimes(ca.diag(ca.DM(sx)), z)
             us = ca.mtimes(ca.diag(ca.DM(su)), v)
             tn = t0 + (tf - t0) * ca.DM((lay.tau + 1.0) / 2.0).T
-            u_ext = ca.horzcat(us, us[:, nc - 1]) if nu else ca.SX(0, nk)
+            u_ext = ca.horzcat(us, us[:, nc - 1]) if nu else ca.MX(0, nk)
             f_all, l_all, c_all = fun.map(nk)(xs, u_ext, tn, p)
             g_parts += [h[0] - (tf - t0) / 2.0, h[1:] - h[:-1]]
             lbg.append(np.zeros(nc))

@@ -1,0 +1,265 @@
+"""Launch the planning service (ROS launch is not needed): recorder, planner node, radar replay or simulator.
+
+    mal-launch --replay data/thesis_radar.mcap --out out/main     # main job: replay, plan, record, stop
+    mal-launch --simulate --duration 60 --out out/sim             # radar simulator instead of a bag
+
+Each part runs as its own process (``python -m mal_planner.ros.<part>``); their output is prefixed with
+the part's name and also written to ``<out>/logs/<part>.log``. SIGINT/SIGTERM are forwarded to the
+children; the recorder is stopped last so that the bag is complete.
+
+With a finite radar source (a bag, or ``--simulate --duration S``) the launcher stops everything once
+the source has ended and the planner has published its plan (it watches ``<out>/planner_status.json``),
+then prints a summary table. ``--keep-running`` keeps the planner up until Ctrl-C instead.
+
+Network: when ``CYCLONEDDS_URI`` is not set, a loopback-only Cyclone DDS configuration (127.0.0.1, no
+multicast) is written to ``<out>/cyclonedds.xml`` and used, so a run never touches the network. Set
+``CYCLONEDDS_URI`` (and ``ROS_DOMAIN_ID``) yourself to talk to other machines or to ROS 2 tools.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import os
+import signal
+import subprocess
+import sys
+import threading
+import time
+from collections.abc import Sequence
+from pathlib import Path
+from typing import Any, TextIO
+
+REPO = Path(__file__).resolve().parents[3]
+STATUS_FILE = "planner_status.json"
+LOOPBACK_XML = """<?xml version="1.0" encoding="UTF-8"?>
+<CycloneDDS xmlns="https://cdds.io/config">
+  <Domain Id="any">
+    <General>
+      <Interfaces><NetworkInterface address="127.0.0.1"/></Interfaces>
+      <AllowMulticast>false</AllowMulticast>
+    </General>
+    <Discovery>
+      <ParticipantIndex>auto</ParticipantIndex>
+      <MaxAutoParticipantIndex>40</MaxAutoParticipantIndex>
+      <Peers><Peer address="127.0.0.1"/></Peers>
+    </Discovery>
+  </Domain>
+</CycloneDDS>
+"""
+READY = {"recorder": "record: recording", "planner": "planner ready"}
+STOP_TIMEOUT_S = 15.0
+
+
+class Child:
+    """One child process; its merged output is echoed with a prefix and saved to a log file."""
+
+    def __init__(self, name: str, args: Sequence[str], env: dict[str, str], log_dir: Path) -> None:
+        self.name = name
+        self.ready = threading.Event()
+        self._ready_text = READY.get(name)
+        self._log: TextIO = (log_dir / f"{name}.log").open("w", encoding="utf-8")
+        self.proc = subprocess.Popen([sys.executable, "-u", "-m", *args], env=env, stdout=subprocess.PIPE,
+                                     stderr=subprocess.STDOUT, text=True, start_new_session=True)
+        self._pump = threading.Thread(target=self._read, daemon=True)
+        self._pump.start()
+        if self._ready_text is None:
+            self.ready.set()
+
+    def _read(self) -> None:
+        assert self.proc.stdout is not None
+        for line in self.proc.stdout:
+            self._log.write(line)
+            self._log.flush()
+            sys.stdout.write(f"[{self.name}] {line}")
+            sys.stdout.flush()
+            if self._ready_text and self._ready_text in line:
+                self.ready.set()
+        self.ready.set()
+
+    def running(self) -> bool:
+        return self.proc.poll() is None
+
+    def stop(self, sig: int = signal.SIGTERM, timeout: float = STOP_TIMEOUT_S) -> int:
+        """Send ``sig``, wait, kill if needed; the exit code."""
+        if self.running():
+            try:
+                self.proc.send_signal(sig)
+                self.proc.wait(timeout=timeout)
+            except subprocess.TimeoutExpired:
+                print(f"launch: {self.name} did not stop within {timeout:.0f} s: killed", flush=True)
+                self.proc.kill()
+                self.proc.wait()
+        self._pump.join(timeout=2.0)
+        self._log.close()
+        return self.proc.returncode
+
+
+def _default(name: str) -> str:
+    return name if Path(name).exists() else str(REPO / name)
+
+
+def parse_args(argv: list[str] | None = None) -> argparse.Namespace:
+    p = argparse.ArgumentParser(prog="mal-launch", description=__doc__.split("\n")[0],
+                                epilog=__doc__.split("\n\n", 2)[2], formatter_class=argparse.RawDescriptionHelpFormatter)
+    src = p.add_mutually_exclusive_group(required=True)
+    src.add_argument("--replay", metavar="BAG", help="replay recorded radar tracks from this bag")
+    src.add_argument("--simulate", action="store_true", help="run the radar simulator on the scenario")
+    p.add_argument("--scenario", default=None, help="scenario YAML (default scenarios/thesis.yaml)")
+    p.add_argument("--params", default=None, help="planner params YAML (default config/planner.params.yaml)")
+    p.add_argument("--out", default="out/main", help="output folder (default out/main)")
+    rec = p.add_mutually_exclusive_group()
+    rec.add_argument("--record", metavar="BAG", default=None, help="record to this bag (default <out>/bag)")
+    rec.add_argument("--no-record", action="store_true", help="do not record")
+    p.add_argument("--rate", type=float, default=1.0, help="replay speed factor (default 1)")
+    p.add_argument("--restamp", action="store_true", help="replay: shift stamps to the publish time")
+    p.add_argument("--sim-rate", type=float, default=2.0, help="simulator rate [Hz] (default 2)")
+    p.add_argument("--duration", type=float, default=0.0, help="simulator duration [s], 0 = until Ctrl-C")
+    p.add_argument("--timeout", type=float, default=300.0,
+                   help="after the radar source ended, wait this long for the plan (default 300 s)")
+    p.add_argument("--keep-running", action="store_true", help="do not stop when the radar source ends")
+    args = p.parse_args(argv)
+    if args.rate < 0 or args.sim_rate <= 0 or args.duration < 0 or args.timeout <= 0:
+        p.error("--rate, --duration must be >= 0; --sim-rate, --timeout > 0")
+    return args
+
+
+def child_env(out: Path) -> dict[str, str]:
+    """Environment of the children: loopback-only Cyclone DDS unless the user set CYCLONEDDS_URI."""
+    env = dict(os.environ)
+    if not env.get("CYCLONEDDS_URI"):
+        cfg = out / "cyclonedds.xml"
+        cfg.write_text(LOOPBACK_XML, encoding="utf-8")
+        env["CYCLONEDDS_URI"] = cfg.resolve().as_uri()
+    src = str(REPO / "src")
+    if (REPO / "src" / "mal_planner").is_dir():
+        env["PYTHONPATH"] = os.pathsep.join(filter(None, [src, env.get("PYTHONPATH", "")]))
+    return env
+
+
+def read_status(out: Path) -> dict[str, Any] | None:
+    try:
+        return json.loads((out / STATUS_FILE).read_text(encoding="utf-8"))
+    except (OSError, ValueError):
+        return None
+
+
+def summary_table(status: dict[str, Any]) -> str:
+    rows = [f"{'order':>5}  {'callsign':<8} {'landing (s)':>11}  verified"]
+    for ac in status.get("aircraft", []):
+        rows.append(f"{ac['order']:>5}  {ac['callsign']:<8} {ac['landing_time_s']:>11.2f}  "
+                    f"{'yes' if ac['verified'] else 'no'}")
+    return "\n".join(rows)
+
+
+class Launcher:
+    def __init__(self, args: argparse.Namespace) -> None:
+        self.args = args
+        self.out = Path(args.out)
+        self.stop_requested = threading.Event()
+        self.children: dict[str, Child] = {}
+
+    def _start(self, name: str, module_args: list[str], env: dict[str, str]) -> Child:
+        child = Child(name, module_args, env, self.out / "logs")
+        self.children[name] = child
+        return child
+
+    def _wait_ready(self, child: Child, timeout: float = 60.0) -> bool:
+        deadline = time.monotonic() + timeout
+        while not child.ready.wait(0.1):
+            if self.stop_requested.is_set() or time.monotonic() > deadline:
+                return False
+        return child.running()
+
+    def run(self) -> int:
+        a = self.args
+        scenario = a.scenario or _default("scenarios/thesis.yaml")
+        params = a.params or _default("config/planner.params.yaml")
+        self.out.mkdir(parents=True, exist_ok=True)
+        (self.out / "logs").mkdir(exist_ok=True)
+        (self.out / STATUS_FILE).unlink(missing_ok=True)
+        env = child_env(self.out)
+        bag = None if a.no_record else Path(a.record) if a.record else self.out / "bag"
+        finite = not a.keep_running and (a.replay is not None or a.duration > 0)
+        print(f"launch: scenario {scenario}, params {params}, out {self.out}, record {bag or 'off'}, "
+              f"CYCLONEDDS_URI {env['CYCLONEDDS_URI']}, ROS_DOMAIN_ID {env.get('ROS_DOMAIN_ID', '0')}", flush=True)
+        if bag is not None:
+            if bag.exists():
+                print(f"launch: {bag} exists already; remove it or choose another --record", flush=True)
+                return 2
+            rec = self._start("recorder", ["mal_planner.ros.record", str(bag), "--scenario", scenario], env)
+            if not self._wait_ready(rec):
+                return self._shutdown(failed="the recorder did not start")
+        planner = self._start("planner", ["mal_planner.ros.planner_node", "--scenario", scenario, "--params", params,
+                                          "--out", str(self.out)], env)
+        if not self._wait_ready(planner):
+            return self._shutdown(failed="the planner did not start")
+        if a.replay:
+            source = self._start("replay", ["mal_planner.ros.replay", a.replay, "--rate", str(a.rate),
+                                            "--wait-for-subscribers", "10", *(["--restamp"] if a.restamp else [])],
+                                 env)
+        else:
+            source = self._start("radar_sim", ["mal_planner.ros.radar_sim", "--scenario", scenario, "--rate",
+                                               str(a.sim_rate), "--duration", str(a.duration)], env)
+        return self._supervise(source, finite)
+
+    def _supervise(self, source: Child, finite: bool) -> int:
+        source_done_at: float | None = None
+        idle_since: float | None = None
+        while not self.stop_requested.wait(0.2):
+            for name, child in self.children.items():
+                if child is not source and not child.running():
+                    return self._shutdown(failed=f"{name} exited with code {child.proc.returncode}")
+            if source_done_at is None and not source.running():
+                if source.proc.returncode != 0:
+                    return self._shutdown(failed=f"{source.name} exited with code {source.proc.returncode}")
+                source_done_at = time.monotonic()
+                print(f"launch: {source.name} finished", flush=True)
+            if not finite or source_done_at is None:
+                continue
+            status = read_status(self.out)
+            done = bool(status and status["plans"] >= 1 and not status["planning"] and not status["pending"])
+            idle_since = (idle_since or time.monotonic()) if done else None
+            if idle_since is not None and time.monotonic() - idle_since >= 1.0:
+                return self._shutdown(status=status)
+            if time.monotonic() - source_done_at > self.args.timeout:
+                return self._shutdown(failed=f"no plan within {self.args.timeout:.0f} s after the radar ended")
+        return self._shutdown(status=read_status(self.out), interrupted=True)
+
+    def _shutdown(self, failed: str | None = None, status: dict[str, Any] | None = None,
+                  interrupted: bool = False) -> int:
+        """Stop the source, then the planner, the recorder last; the launcher's exit code."""
+        if failed:
+            print(f"launch: FAILED: {failed}", flush=True)
+        codes: dict[str, int] = {}
+        for name in ("replay", "radar_sim", "planner", "recorder"):
+            if name in self.children:
+                codes[name] = self.children[name].stop(signal.SIGINT if name in ("replay", "radar_sim")
+                                                       else signal.SIGTERM)
+        bad = {n: c for n, c in codes.items() if c not in (0, -signal.SIGINT, -signal.SIGTERM)}
+        if bad:
+            print("launch: children failed: " + ", ".join(f"{n} (exit {c})" for n, c in bad.items()), flush=True)
+        if status and status.get("aircraft"):
+            print(f"launch: {status['plans']} plan(s); last plan:\n{summary_table(status)}", flush=True)
+            outputs = sorted(p.name for p in self.out.iterdir() if p.suffix in (".json", ".png", ".md"))
+            print(f"launch: outputs in {self.out}: {', '.join(outputs)}", flush=True)
+        if failed or bad:
+            return 1
+        return 130 if interrupted and not status else 0
+
+
+def main(argv: list[str] | None = None) -> int:
+    args = parse_args(argv)
+    launcher = Launcher(args)
+
+    def on_signal(signum: int, _frame: Any) -> None:
+        print(f"launch: {signal.Signals(signum).name}: stopping", flush=True)
+        launcher.stop_requested.set()
+
+    signal.signal(signal.SIGINT, on_signal)
+    signal.signal(signal.SIGTERM, on_signal)
+    return launcher.run()
+
+
+if __name__ == "__main__":
+    sys.exit(main())

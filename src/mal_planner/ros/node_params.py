@@ -1,0 +1,174 @@
+"""Parameters of the planner node: defaults, validation (one log line per bad value) and PlanOptions."""
+
+from __future__ import annotations
+
+import logging
+import math
+from collections.abc import Callable, Mapping
+from dataclasses import dataclass, fields
+from pathlib import Path
+from typing import Any
+
+from mal_planner.landing import LandingOptions
+from mal_planner.pipeline import PlanOptions
+from mal_planner.ros.transport import load_params_file
+
+Check = Callable[[Any], Any]
+
+
+def _bool(v: Any) -> bool:
+    if isinstance(v, bool):
+        return v
+    raise ValueError("expected true or false")
+
+
+def _int(lo: int) -> Check:
+    def check(v: Any) -> int:
+        if isinstance(v, bool) or not isinstance(v, (int, float)) or int(v) != v:
+            raise ValueError("expected an integer")
+        if v < lo:
+            raise ValueError(f"must be >= {lo}")
+        return int(v)
+    return check
+
+
+def _float(positive: bool = False) -> Check:
+    def check(v: Any) -> float:
+        if isinstance(v, bool) or not isinstance(v, (int, float)) or not math.isfinite(v):
+            raise ValueError("expected a finite number")
+        if v < 0 or (positive and v == 0):
+            raise ValueError("must be > 0" if positive else "must be >= 0")
+        return float(v)
+    return check
+
+
+def _str(v: Any) -> str:
+    if not isinstance(v, str):
+        raise ValueError("expected a string")
+    return v
+
+
+def _choice(*options: str) -> Check:
+    def check(v: Any) -> str:
+        if v not in options:
+            raise ValueError(f"expected one of {', '.join(options)}")
+        return str(v)
+    return check
+
+
+def _initializer(v: Any) -> str:
+    if v == "multi-rrt" or (isinstance(v, str) and v.startswith("ompl:") and len(v) > 5):
+        return str(v)
+    raise ValueError("expected 'multi-rrt' or 'ompl:<planner>'")
+
+
+def _seed(v: Any) -> int:
+    return _int(-1)(v)
+
+
+#: name -> (default, check, description)
+PARAMETERS: dict[str, tuple[Any, Check, str]] = {
+    "initializer": ("multi-rrt", _initializer, "path planner of the initializer ('multi-rrt', 'ompl:<planner>')"),
+    "seed": (0, _seed, "random seed of the initializer, -1 = random"),
+    "optimize": (True, _bool, "run the pseudospectral optimizer (false: publish the initializer's paths)"),
+    "verify": (True, _bool, "verify optimized trajectories (separation, limits, re-integration)"),
+    "guess": ("initializer", _choice("initializer", "straight"), "optimizer initial guess"),
+    "fixed_landing_times": (True, _bool, "fix the landing times (scenario's, else the sequencer's + margin)"),
+    "mesh_tol": (1e-6, _float(positive=True), "mesh refinement tolerance"),
+    "refine": (True, _bool, "hp mesh refinement"),
+    "segments": (4, _int(1), "mesh segments per phase"),
+    "degree": (6, _int(2), "collocation degree per segment"),
+    "nlp_tol": (1e-8, _float(positive=True), "IPOPT tolerance"),
+    "max_nlp_iterations": (3000, _int(1), "IPOPT iteration limit"),
+    "max_mesh_iterations": (8, _int(1), "mesh refinement iteration limit"),
+    "output_dt": (0.25, _float(positive=True), "sample step of the published paths [s]"),
+    "replan_period_s": (0.0, _float(), "periodic replanning [s], 0 = off"),
+    "deviation_threshold_m": (926.0, _float(), "replan when radar deviates more from the plan [m], 0 = off"),
+    "min_replan_interval_s": (5.0, _float(), "no deviation/periodic replan sooner after a plan [s]"),
+    "min_aircraft": (1, _int(1), "plan only with at least this many tracked aircraft"),
+    "settle_time_s": (2.0, _float(), "wait after the first radar message before the first plan [s]"),
+    "track_timeout_s": (30.0, _float(), "forget aircraft not seen for this long (radar time) [s], 0 = never"),
+    "radar_qos": ("default", _choice("default", "sensor_data"), "QoS of the radar subscriptions"),
+    "frame_id": ("runway", _str, "frame of radar input and published paths"),
+    "output_dir": ("", _str, "write plan.json, report.md and figures here after each plan ('' = off)"),
+    "figures": (True, _bool, "write PNG figures into output_dir"),
+    "service_timeout_s": (600.0, _float(positive=True), "longest a service call waits for its plan [s]"),
+}
+
+
+@dataclass(frozen=True)
+class NodeParams:
+    initializer: str
+    seed: int
+    optimize: bool
+    verify: bool
+    guess: str
+    fixed_landing_times: bool
+    mesh_tol: float
+    refine: bool
+    segments: int
+    degree: int
+    nlp_tol: float
+    max_nlp_iterations: int
+    max_mesh_iterations: int
+    output_dt: float
+    replan_period_s: float
+    deviation_threshold_m: float
+    min_replan_interval_s: float
+    min_aircraft: int
+    settle_time_s: float
+    track_timeout_s: float
+    radar_qos: str
+    frame_id: str
+    output_dir: str
+    figures: bool
+    service_timeout_s: float
+
+    def plan_options(self) -> PlanOptions:
+        landing = LandingOptions(guess=self.guess, fixed_landing_times=self.fixed_landing_times,  # type: ignore[arg-type]
+                                 segments=self.segments, degree=self.degree, mesh_tol=self.mesh_tol,
+                                 nlp_tol=self.nlp_tol, max_nlp_iterations=self.max_nlp_iterations,
+                                 max_mesh_iterations=self.max_mesh_iterations, refine=self.refine,
+                                 output_dt=self.output_dt)
+        return PlanOptions(initializer=self.initializer, seed=None if self.seed < 0 else self.seed,
+                           optimize=self.optimize, verify=self.verify, landing=landing)
+
+
+assert {f.name for f in fields(NodeParams)} == set(PARAMETERS)
+
+
+def read_params_file(path: str | Path | None, node_name: str, namespace: str, log: logging.Logger) -> dict[str, Any]:
+    """Overrides from a ROS 2 params YAML; a missing or malformed file is logged (one line) and ignored."""
+    if not path:
+        return {}
+    try:
+        values = load_params_file(path, node_name, namespace)
+    except OSError as exc:
+        log.error("params file %s: cannot read (%s); using defaults", path, exc.strerror or exc)
+        return {}
+    except Exception as exc:  # yaml errors and malformed structures
+        log.error("params file %s: invalid (%s); using defaults", path, " ".join(str(exc).split()))
+        return {}
+    for name in sorted(set(values) - set(PARAMETERS)):
+        log.warning("params file %s: unknown parameter %r (ignored)", path, name)
+    return {k: v for k, v in values.items() if k in PARAMETERS}
+
+
+def declare_parameters(node: Any, source: str, log: logging.Logger) -> NodeParams:
+    """Declare every parameter on ``node`` and validate; a bad value is logged and replaced by its default."""
+    values: dict[str, Any] = {}
+    for name, (default, check, _doc) in PARAMETERS.items():
+        raw = node.declare_parameter(name, default).value
+        try:
+            values[name] = check(raw)
+        except ValueError as exc:
+            log.error("parameter %r (%s): %s, got %r; using the default %r", name, source, exc, raw, default)
+            values[name] = default
+            node.set_parameter(name, default)
+    return NodeParams(**values)
+
+
+def describe(params: Mapping[str, Any] | NodeParams) -> str:
+    """``name=value`` list for the start-up log line."""
+    items = params.__dict__ if isinstance(params, NodeParams) else params
+    return ", ".join(f"{k}={v!r}" for k, v in items.items())

@@ -1,0 +1,109 @@
+"""Build the scenario of one plan from the base scenario, radar tracks and no-fly zone updates."""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Mapping
+from dataclasses import dataclass, replace
+from typing import Any
+
+import numpy as np
+
+from mal_planner.dynamics import make_dynamics
+from mal_planner.obstacles import Superquadric
+from mal_planner.ros.state_store import Track
+from mal_planner.scenario import Aircraft, Scenario
+from mal_planner.units import m_to_nm
+
+DEFAULT_MODEL = "point_mass"
+AIRSPACE_TOL_NM = 0.05
+"""Extrapolated states this far outside the airspace are clipped back in; further out they are left out."""
+MIN_TIME_FACTOR = 1.05
+"""Fixed landing times shorter than this factor x (straight distance / speed) are given up (sequencer)."""
+
+
+class NoFlyZoneError(ValueError):
+    """An invalid ``mal_msgs/NoFlyZone`` message (one-line reason)."""
+
+
+def no_fly_zone_to_superquadric(msg: Any) -> Superquadric:
+    """``mal_msgs/NoFlyZone`` (metres) -> :class:`Superquadric` (nm); raises NoFlyZoneError."""
+    name = str(msg.name).strip()
+    if not name:
+        raise NoFlyZoneError("empty name")
+    center = [float(msg.center.x), float(msg.center.y), float(msg.center.z)]
+    axes = [float(msg.semi_axes.x), float(msg.semi_axes.y), float(msg.semi_axes.z)]
+    if not all(math.isfinite(v) for v in center + axes):
+        raise NoFlyZoneError(f"{name!r}: non-finite center or semi-axes")
+    if min(axes) <= 0.0:
+        raise NoFlyZoneError(f"{name!r}: semi-axes {axes} m must all be > 0")
+    p = int(msg.p)
+    if p < 2 or p % 2:
+        raise NoFlyZoneError(f"{name!r}: p must be an even integer >= 2, got {p}")
+    return Superquadric(name, tuple(float(m_to_nm(v)) for v in center),  # type: ignore[arg-type]
+                        tuple(float(m_to_nm(v)) for v in axes), p)  # type: ignore[arg-type]
+
+
+def apply_no_fly_zone(obstacles: tuple[Superquadric, ...], msg: Any) -> tuple[tuple[Superquadric, ...], str]:
+    """New obstacle tuple after a NoFlyZone message, and a description; raises NoFlyZoneError."""
+    name = str(msg.name).strip()
+    if bool(msg.remove):
+        if not any(ob.name == name for ob in obstacles):
+            raise NoFlyZoneError(f"cannot remove {name!r}: no such obstacle")
+        return tuple(ob for ob in obstacles if ob.name != name), f"removed no-fly zone {name!r}"
+    zone = no_fly_zone_to_superquadric(msg)
+    replaced = any(ob.name == name for ob in obstacles)
+    out = tuple(ob for ob in obstacles if ob.name != name) + (zone,)
+    return out, f"{'replaced' if replaced else 'added'} no-fly zone {name!r} (p={zone.p})"
+
+
+@dataclass(frozen=True)
+class PlanInputs:
+    """The scenario to plan (initial states at ``plan_start``) and the aircraft left out (with reasons)."""
+
+    scenario: Scenario
+    plan_start: float
+    left_out: dict[str, str]
+
+
+def build_plan_scenario(base: Scenario, tracks: Mapping[str, Track], plan_start: float,
+                        landing_shift: float) -> PlanInputs:
+    """Aircraft = the tracked ones, extrapolated to ``plan_start``; scenario data where the scenario knows
+    them (speed, model, limits, landing time minus ``landing_shift``), defaults otherwise."""
+    left_out: dict[str, str] = {}
+    aircraft: list[Aircraft] = []
+    lo, hi = base.airspace[:, 0], base.airspace[:, 1]
+    default_limits = base.config.limits.to_limits()
+    for cs in sorted(tracks):
+        tr = tracks[cs]
+        state = tr.at(plan_start)
+        pos = state[:3]
+        if np.any(pos < lo - AIRSPACE_TOL_NM) or np.any(pos > hi + AIRSPACE_TOL_NM):
+            left_out[cs] = "outside the airspace at the plan start"
+            continue
+        state[:3] = np.clip(pos, lo, hi)
+        if base.collides(state[:3]):
+            left_out[cs] = "inside an obstacle at the plan start"
+            continue
+        try:
+            known = base.aircraft_by_callsign(cs)
+        except KeyError:
+            dyn = make_dynamics(DEFAULT_MODEL, tr.speed, gravity=base.gravity)
+            aircraft.append(Aircraft(cs, state, dyn, default_limits, tr.wake, None))
+            continue
+        landing = None if known.landing_time is None else known.landing_time - landing_shift
+        aircraft.append(Aircraft(cs, state, known.dynamics, known.limits, known.wake_category or tr.wake, landing))
+    aircraft = _feasible_landing_times(aircraft, base.runway_state[:3])
+    return PlanInputs(replace(base, aircraft=tuple(aircraft)), plan_start, left_out)
+
+
+def _feasible_landing_times(aircraft: list[Aircraft], runway: np.ndarray) -> list[Aircraft]:
+    """Drop all fixed landing times (the sequencer decides) if one is missing or cannot be met."""
+    times = [a.landing_time for a in aircraft]
+    if all(t is None for t in times):
+        return aircraft
+    ok = all(t is not None and t >= MIN_TIME_FACTOR * float(np.linalg.norm(a.position - runway)) / a.speed
+             for a, t in zip(aircraft, times, strict=True))
+    if ok:
+        return aircraft
+    return [replace(a, landing_time=None) for a in aircraft]

@@ -1,0 +1,626 @@
+"""The planner node: radar tracks in, conflict-free landing plans out (paths, LandingPlan, markers).
+
+    python -m mal_planner.ros.planner_node --scenario scenarios/thesis.yaml --params config/planner.params.yaml
+
+Threads: the node "planner" (topics, timer) is spun on the main thread and only converts messages and
+schedules work; plans run on a worker thread (a request while planning is coalesced into one follow-up
+plan); the services live on a second node "planner_services" spun on its own thread, so a service call
+that waits for its plan never blocks the radar callbacks.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import logging
+import math
+import os
+import re
+import signal
+import sys
+import threading
+import time
+from collections import deque
+from concurrent.futures import Future
+from dataclasses import dataclass, field, replace
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from mal_planner.dynamics import bank_angle
+from mal_planner.pipeline import Planner, PlanResult
+from mal_planner.ros.convert import aircraft_state_to_planner, path_msg, time_to_msg
+from mal_planner.ros.markers import marker_array
+from mal_planner.ros.node_params import NodeParams, declare_parameters, describe, read_params_file
+from mal_planner.ros.plan_scenario import NoFlyZoneError, PlanInputs, apply_no_fly_zone, build_plan_scenario
+from mal_planner.ros.state_store import CALLSIGN_RE, Track, TrackStore, check_track
+from mal_planner.ros.transport import QOS_DEFAULT, QOS_LATCHED, QOS_SENSOR_DATA, create_node
+from mal_planner.scenario import Scenario, ScenarioError, load_scenario
+from mal_planner.trajectory import Trajectory
+from mal_planner.units import METRES_PER_NM
+
+NODE_NAME = "planner"
+SERVICES_NODE_NAME = "planner_services"
+STATE_TYPE = "mal_msgs/msg/AircraftState"
+STATUS_FILE = "planner_status.json"
+TICK_S = 0.2
+REPO = Path(__file__).resolve().parents[3]
+# mal_msgs/AircraftPlan status constants and diagnostic_msgs/DiagnosticStatus levels
+OPTIMAL, INITIAL_GUESS, FAILED = 0, 1, 2
+DIAG_OK, DIAG_WARN, DIAG_ERROR = 0, 1, 2
+
+log = logging.getLogger("mal_planner.ros.planner")
+
+
+@dataclass
+class PlanJob:
+    """Work for the worker: radar-based (``explicit`` None, coalesced) or with explicit states."""
+
+    reasons: list[str]
+    explicit: dict[str, Track] | None = None
+    waiters: list[Future[PlanOutcome]] = field(default_factory=list)
+
+
+@dataclass
+class PlanOutcome:
+    success: bool
+    message: str
+    plan_msg: Any = None
+    path_msgs: list[Any] = field(default_factory=list)
+    result: PlanResult | None = None
+
+
+@dataclass(frozen=True)
+class CurrentPlan:
+    """The last published plan (radar deviation checks compare against it)."""
+
+    plan_start: float
+    trajectories: dict[str, Trajectory]
+    landing_abs: dict[str, float]
+    """Landing times [s, radar clock] per callsign."""
+    considered: frozenset[str]
+    """Callsigns tracked when it was planned (a new one triggers a replan)."""
+    from_radar: bool
+
+
+def _dedupe(traj: Trajectory) -> tuple[np.ndarray, np.ndarray, np.ndarray | None]:
+    """Samples with strictly increasing times (a phase boundary appears twice in optimizer output)."""
+    keep = np.concatenate([[True], np.diff(traj.t) > 1e-9])
+    bank = None if traj.controls is None else bank_angle(traj.controls[keep, 0], traj.controls[keep, 1])
+    return traj.t[keep], traj.states[keep], bank
+
+
+def _aircraft_verified(result: PlanResult, callsign: str) -> bool:
+    rep = result.verification
+    if rep is None:
+        return False
+    if rep.verified:
+        return True
+    for reason in rep.reasons:
+        head = reason.split(":", 1)[0]
+        if callsign in re.split(r"[^A-Za-z0-9_]+", head):
+            return False
+    return True
+
+
+class PlannerNode:
+    """Owns the two nodes, the track store, the planner and the worker thread."""
+
+    def __init__(self, scenario: Scenario, *, params_file: str | Path | None = None, output_dir: str | None = None,
+                 namespace: str = "", backend: str = "auto") -> None:
+        overrides = read_params_file(params_file, NODE_NAME, namespace, log)
+        if output_dir is not None:
+            overrides["output_dir"] = output_dir
+        self.node = create_node(NODE_NAME, namespace, backend=backend, parameter_overrides=overrides)
+        self.srv_node = create_node(SERVICES_NODE_NAME, namespace, backend=backend)
+        self.params: NodeParams = declare_parameters(self.node, str(params_file or "defaults"), log)
+        self.types = self.node.types
+        self.scenario = scenario
+        self.obstacles = scenario.obstacles
+        self.planner = Planner(self.params.plan_options())
+        self.tracks = TrackStore()
+        self.out_dir = Path(self.params.output_dir) if self.params.output_dir else None
+        self._lock = threading.Condition()
+        self._explicit: deque[PlanJob] = deque()
+        self._radar_job: PlanJob | None = None
+        self._busy = False
+        self._stop = False
+        self._current: CurrentPlan | None = None
+        self._plans = 0
+        self._epoch: float | None = None
+        self._first_rx: float | None = None
+        self._initial_requested = False
+        self._last_done = -math.inf
+        self._bad_inputs: dict[str, float] = {}
+        self._path_pubs: dict[str, Any] = {}
+        self._state_subs: dict[str, Any] = {}
+        self._published_paths: set[str] = set()
+        self._setup_ros()
+        self._worker = threading.Thread(target=self._work, name="planner-worker", daemon=True)
+        self._srv_thread = threading.Thread(target=self._spin_services, name="planner-services", daemon=True)
+        log.info("planner ready: scenario %s (%d aircraft known, %d obstacles), %s", scenario.source,
+                 len(scenario.aircraft), len(scenario.obstacles), describe(self.params))
+
+    # -- set-up -------------------------------------------------------------------------------------
+    def _setup_ros(self) -> None:
+        node = self.node
+        self.radar_qos = QOS_SENSOR_DATA if self.params.radar_qos == "sensor_data" else QOS_DEFAULT
+        self.plan_pub = node.create_publisher("mal_msgs/msg/LandingPlan", "landing_plan", QOS_LATCHED)
+        self.marker_pub = node.create_publisher("visualization_msgs/msg/MarkerArray", "planner/markers", QOS_LATCHED)
+        self.diag_pub = node.create_publisher("diagnostic_msgs/msg/DiagnosticArray", "diagnostics", QOS_LATCHED)
+        for ac in self.scenario.aircraft:
+            self._ensure_aircraft(ac.callsign)
+        node.create_subscription(STATE_TYPE, "radar/tracks", lambda m: self._on_state(m, "radar/tracks"),
+                                 self.radar_qos)
+        node.create_subscription("mal_msgs/msg/NoFlyZone", "airspace/no_fly_zones", self._on_no_fly_zone, QOS_DEFAULT)
+        node.create_timer(TICK_S, self._tick)
+        self.srv_node.create_service("std_srvs/srv/Trigger", "plan", self._srv_trigger)
+        self.srv_node.create_service("mal_msgs/srv/PlanLanding", "plan_landing", self._srv_plan_landing)
+        self._publish_markers([], 0.0)
+
+    def _ensure_aircraft(self, callsign: str) -> None:
+        """Per-aircraft state subscription and path publisher (executor thread only)."""
+        if callsign in self._state_subs:
+            return
+        topic = f"aircraft/{callsign}/state"
+        self._state_subs[callsign] = self.node.create_subscription(
+            STATE_TYPE, topic, lambda m: self._on_state(m, topic), self.radar_qos)
+        self._path_pubs[callsign] = self.node.create_publisher("nav_msgs/msg/Path", f"aircraft/{callsign}/path",
+                                                               QOS_LATCHED)
+
+    # -- executor-thread callbacks (cheap) ----------------------------------------------------------
+    def _bad(self, key: str, text: str) -> None:
+        """Log bad input once per key and 5 s (a 10 Hz stream of bad data gives one line, not a flood)."""
+        now = time.monotonic()
+        if now - self._bad_inputs.get(key, -math.inf) >= 5.0:
+            self._bad_inputs[key] = now
+            log.error("%s", text)
+
+    def _on_state(self, msg: Any, topic: str) -> None:
+        try:
+            callsign, stamp, state, speed, wake = aircraft_state_to_planner(msg)
+            track = Track(callsign, stamp, state, speed, wake)
+            reason = check_track(track, str(msg.header.frame_id), self.params.frame_id, self.scenario.airspace)
+        except Exception as exc:  # malformed message
+            self._bad(topic, f"bad AircraftState on {topic}: {exc} (ignored)")
+            return
+        if reason is not None:
+            self._bad(f"{topic}:{callsign}", f"bad AircraftState on {topic} for {callsign!r} at t={stamp:.3f}: "
+                      f"{reason} (ignored)")
+            return
+        if not self.tracks.update(track):
+            return
+        if callsign not in self._state_subs:
+            log.info("new aircraft %s on %s (wake %s)", callsign, topic, wake or "?")
+            self._ensure_aircraft(callsign)
+        if self._first_rx is None:
+            self._first_rx = time.monotonic()
+            self._epoch = stamp
+            log.info("first radar message (%s, t=%.3f); first plan in %.1f s", callsign, stamp,
+                     self.params.settle_time_s)
+        self._check_deviation(track)
+
+    def _check_deviation(self, track: Track) -> None:
+        cur = self._current
+        if cur is None or not cur.from_radar or self._busy or self._pending():
+            return
+        if time.monotonic() - self._last_done < self.params.min_replan_interval_s:
+            return
+        traj = cur.trajectories.get(track.callsign)
+        if traj is None:
+            if track.callsign not in cur.considered:
+                self.request(f"new aircraft {track.callsign}")
+            return
+        thr = self.params.deviation_threshold_m
+        dt = track.stamp - cur.plan_start
+        if thr <= 0 or dt < 0 or dt > traj.t[-1]:
+            return
+        dev = float(np.linalg.norm(traj.state_at(dt)[:3] - track.state[:3])) * METRES_PER_NM
+        if dev > thr:
+            self.request(f"{track.callsign} deviates {dev:.0f} m from the plan")
+
+    def _on_no_fly_zone(self, msg: Any) -> None:
+        try:
+            with self._lock:
+                self.obstacles, what = apply_no_fly_zone(self.obstacles, msg)
+        except (NoFlyZoneError, AttributeError, TypeError, ValueError) as exc:
+            log.error("bad NoFlyZone on airspace/no_fly_zones: %s (ignored)", exc)
+            return
+        log.info("%s (%d obstacles)", what, len(self.obstacles))
+        cur = self._current
+        self._publish_markers(list(cur.trajectories.values()) if cur else [], cur.plan_start if cur else 0.0)
+        if len(self.tracks) >= self.params.min_aircraft and self._initial_requested:
+            self.request(what)
+
+    def _tick(self) -> None:
+        p = self.params
+        now = time.monotonic()
+        if p.track_timeout_s > 0 and (latest := self.tracks.latest_stamp()) is not None:
+            for cs in self.tracks.drop_older_than(latest - p.track_timeout_s):
+                log.info("aircraft %s not seen for %.0f s: dropped", cs, p.track_timeout_s)
+        if (not self._initial_requested and self._first_rx is not None and now - self._first_rx >= p.settle_time_s
+                and len(self.tracks) >= p.min_aircraft):
+            self._initial_requested = True
+            self.request(f"initial plan ({len(self.tracks)} aircraft tracked)")
+        if (p.replan_period_s > 0 and self._current is not None and not self._busy and not self._pending()
+                and now - self._last_done >= max(p.replan_period_s, p.min_replan_interval_s)):
+            self.request("periodic replan")
+
+    # -- scheduling ----------------------------------------------------------------------------------
+    def _pending(self) -> bool:
+        return self._radar_job is not None or bool(self._explicit)
+
+    def request(self, reason: str, explicit: dict[str, Track] | None = None) -> Future[PlanOutcome]:
+        """Schedule a plan (thread-safe); radar-based requests made while planning coalesce into one."""
+        future: Future[PlanOutcome] = Future()
+        with self._lock:
+            if self._stop:
+                future.set_result(PlanOutcome(False, "planner is shutting down"))
+                return future
+            if explicit is not None:
+                self._explicit.append(PlanJob([reason], explicit, [future]))
+            elif self._radar_job is None:
+                self._radar_job = PlanJob([reason], None, [future])
+            else:
+                self._radar_job.reasons.append(reason)
+                self._radar_job.waiters.append(future)
+            self._lock.notify_all()
+        log.info("plan requested: %s%s", reason, " (queued behind the running plan)" if self._busy else "")
+        return future
+
+    def _work(self) -> None:
+        while True:
+            with self._lock:
+                while not self._stop and not self._pending():
+                    self._lock.wait()
+                if self._stop:
+                    return
+                job = self._explicit.popleft() if self._explicit else self._radar_job
+                if job is self._radar_job:
+                    self._radar_job = None
+                self._busy = True
+            assert job is not None
+            self._write_status()
+            try:
+                outcome = self._plan(job)
+            except Exception as exc:  # never let the worker die
+                log.exception("planning failed")
+                outcome = PlanOutcome(False, f"planning failed: {exc}")
+            with self._lock:
+                self._busy = False
+                self._last_done = time.monotonic()
+            self._write_status()
+            for fut in job.waiters:
+                if not fut.done():
+                    fut.set_result(outcome)
+
+    # -- planning (worker thread) --------------------------------------------------------------------
+    def _inputs(self, job: PlanJob) -> PlanInputs | str:
+        tracks = job.explicit if job.explicit is not None else self.tracks.snapshot()
+        if len(tracks) < (1 if job.explicit is not None else self.params.min_aircraft):
+            return f"{len(tracks)} aircraft tracked (min_aircraft {self.params.min_aircraft}): nothing to plan"
+        plan_start = max(t.stamp for t in tracks.values())
+        shift = max(0.0, plan_start - self._epoch) if self._epoch is not None else 0.0
+        with self._lock:
+            base = replace(self.scenario, obstacles=self.obstacles)
+        inputs = build_plan_scenario(base, tracks, plan_start, shift)
+        for cs, why in inputs.left_out.items():
+            log.warning("aircraft %s left out of the plan: %s", cs, why)
+        if not inputs.scenario.aircraft:
+            return "no aircraft to plan (all left out)"
+        return inputs
+
+    def _retarget_landing_times(self, inputs: PlanInputs) -> None:
+        """Keep a warm-started optimizer's landing times fixed in radar time (they are relative to the start)."""
+        opt, cur = getattr(self.planner, "_optimizer", None), self._current
+        if opt is None or cur is None:
+            return
+        callsigns = list(opt.layout.callsigns)
+        planned = {a.callsign for a in inputs.scenario.aircraft}
+        if set(callsigns) != planned or not planned <= set(cur.landing_abs):
+            return
+        times = [cur.landing_abs[cs] - inputs.plan_start for cs in callsigns]
+        if min(times) > 0:
+            opt.landing_times = times
+
+    def _plan(self, job: PlanJob) -> PlanOutcome:
+        t0 = time.perf_counter()
+        inputs = self._inputs(job)
+        if isinstance(inputs, str):
+            log.warning("no plan: %s", inputs)
+            return PlanOutcome(False, inputs)
+        sc = inputs.scenario
+        log.info("planning (%s): %d aircraft [%s] from t=%.3f", "; ".join(job.reasons), len(sc.aircraft),
+                 ", ".join(a.callsign for a in sc.aircraft), inputs.plan_start)
+        self._retarget_landing_times(inputs)
+        try:
+            result = self.planner.plan(sc, reuse=True)
+        except Exception as exc:
+            msg = f"planning failed: {' '.join(str(exc).split()) or type(exc).__name__}"
+            log.error("%s (keeping the last plan)", msg)
+            log.debug("planning failed", exc_info=True)
+            self._publish_diagnostics(None, msg)
+            plan = self._landing_plan_msg(None, inputs.plan_start, [a.callsign for a in sc.aircraft])
+            return PlanOutcome(False, msg, plan)
+        t_plan = time.perf_counter() - t0
+        plan_msg, path_msgs = self._publish(result, inputs, job)
+        t_pub = time.perf_counter() - t0 - t_plan
+        outputs = self._write_outputs(result)
+        t_out = time.perf_counter() - t0 - t_plan - t_pub
+        self._plans += 1
+        summary = self._summary(result)
+        timings = ", ".join(f"{k.removesuffix('_s')} {v:.2f} s" for k, v in result.timings.items())
+        log.info("plan #%d: %s; %s; planned in %.2f s (%s), published in %.2f s, outputs in %.2f s%s",
+                 self._plans, summary, self._status_text(result), t_plan, timings, t_pub, t_out,
+                 f" -> {self.out_dir}" if outputs else "")
+        return PlanOutcome(True, f"{self._status_text(result)}: {summary}", plan_msg, path_msgs, result)
+
+    @staticmethod
+    def _status_text(result: PlanResult) -> str:
+        if result.landing is None:
+            return "initializer only"
+        verdict = "n/a" if result.verification is None else (
+            "verified" if result.verification.verified else "NOT verified")
+        return f"{result.landing.status}, {verdict}" if result.optimized else f"optimizer {result.landing.status}"
+
+    @staticmethod
+    def _summary(result: PlanResult) -> str:
+        land = result.landing_times()
+        return "order " + ", ".join(f"{cs} lands at {land[cs]:.1f} s" for cs in result.order)
+
+    def _write_outputs(self, result: PlanResult) -> bool:
+        if self.out_dir is None:
+            return False
+        try:
+            from mal_planner.report import write_outputs
+        except ImportError:
+            log.warning("mal_planner.report is not available: no plan JSON/figures written")
+            return False
+        try:
+            write_outputs(result, self.out_dir, figures=self.params.figures)
+        except Exception as exc:
+            log.error("writing outputs to %s failed: %s", self.out_dir, exc)
+            return False
+        return True
+
+    # -- messages --------------------------------------------------------------------------------------
+    def _landing_plan_msg(self, result: PlanResult | None, plan_start: float, callsigns: list[str]) -> Any:
+        T = self.types
+        entries = []
+        if result is None:
+            entries = [T.msg("mal_msgs/msg/AircraftPlan")(callsign=cs, order=k, gate_time=math.nan,
+                                                          landing_time=math.nan, status=FAILED, verified=False)
+                       for k, cs in enumerate(callsigns, 1)]
+        else:
+            land, gates = result.landing_times(), result.gate_times()
+            status = OPTIMAL if result.optimized else INITIAL_GUESS
+            for k, cs in enumerate(result.order, 1):
+                gate = gates.get(cs)
+                entries.append(T.msg("mal_msgs/msg/AircraftPlan")(
+                    callsign=cs, order=k, gate_time=math.nan if gate is None else float(gate),
+                    landing_time=float(land[cs]), status=status,
+                    verified=result.optimized and _aircraft_verified(result, cs)))
+        header = T.msg("std_msgs/msg/Header")(stamp=time_to_msg(T, plan_start), frame_id=self.params.frame_id)
+        return T.msg("mal_msgs/msg/LandingPlan")(header=header, aircraft=entries)
+
+    def _path_msgs(self, result: PlanResult, plan_start: float) -> dict[str, Any]:
+        out = {}
+        for traj in result.trajectories():
+            t, states, bank = _dedupe(traj)
+            out[traj.callsign] = path_msg(self.types, traj.callsign, plan_start, t, states, bank, self.params.frame_id)
+        return out
+
+    def _publish(self, result: PlanResult, inputs: PlanInputs, job: PlanJob) -> tuple[Any, list[Any]]:
+        plan_start = inputs.plan_start
+        paths = self._path_msgs(result, plan_start)
+        plan_msg = self._landing_plan_msg(result, plan_start, result.order)
+        trajectories = {tr.callsign: tr for tr in result.trajectories()}
+        land = result.landing_times()
+        considered = frozenset(a.callsign for a in inputs.scenario.aircraft) | frozenset(inputs.left_out)
+        self._current = CurrentPlan(plan_start, trajectories, {cs: plan_start + land[cs] for cs in land},
+                                    considered, job.explicit is None)
+        for cs, msg in paths.items():
+            pub = self._path_pubs.get(cs)
+            if pub is None:  # explicit states of an aircraft never seen on radar
+                pub = self._path_pubs[cs] = self.node.create_publisher("nav_msgs/msg/Path", f"aircraft/{cs}/path",
+                                                                       QOS_LATCHED)
+            pub.publish(msg)
+        for cs in self._published_paths - set(paths):  # no longer planned: clear its path
+            self._path_pubs[cs].publish(path_msg(self.types, cs, plan_start, [], np.zeros((0, 5)),
+                                                 frame=self.params.frame_id))
+        self._published_paths = set(paths)
+        self.plan_pub.publish(plan_msg)
+        self._publish_markers(list(trajectories.values()), plan_start)
+        self._publish_diagnostics(result, self._status_text(result))
+        return plan_msg, [paths[cs] for cs in result.order]
+
+    def _publish_markers(self, trajectories: list[Trajectory], stamp: float) -> None:
+        with self._lock:
+            obstacles = self.obstacles
+        self.marker_pub.publish(marker_array(self.types, obstacles, self.scenario.gates, trajectories, stamp,
+                                             self.params.frame_id))
+
+    def _publish_diagnostics(self, result: PlanResult | None, message: str) -> None:
+        T = self.types
+
+        def kv(key: str, value: Any) -> Any:
+            return T.msg("diagnostic_msgs/msg/KeyValue")(key=key, value=str(value))
+
+        values = [kv("plans", self._plans)]
+        if result is None:
+            level = DIAG_ERROR
+        else:
+            lr, rep = result.landing, result.verification
+            level = DIAG_OK if result.optimized and rep is not None and rep.verified else DIAG_WARN
+            values += [kv("order", ",".join(result.order)),
+                       kv("solver_status", lr.status if lr else "not run"),
+                       kv("solve_time_s", f"{lr.solve_time:.3f}" if lr else "nan"),
+                       kv("nlp_iterations", lr.nlp_iterations if lr else 0),
+                       kv("verified", bool(rep and rep.verified)),
+                       kv("reasons", "; ".join(rep.reasons) if rep else "")]
+            values += [kv(k, f"{v:.3f}") for k, v in result.timings.items()]
+        status = T.msg("diagnostic_msgs/msg/DiagnosticStatus")(
+            level=level, name=f"{self.node.get_name()}: landing plan", message=message, hardware_id="mal_planner",
+            values=values)
+        header = T.msg("std_msgs/msg/Header")(stamp=time_to_msg(T, time.time()), frame_id="")
+        self.diag_pub.publish(T.msg("diagnostic_msgs/msg/DiagnosticArray")(header=header, status=[status]))
+
+    def _write_status(self) -> None:
+        """``planner_status.json`` in the output folder: plan count, busy flag, last plan (for mal-launch)."""
+        if self.out_dir is None:
+            return
+        cur, result = self._current, self.planner.last
+        status: dict[str, Any] = {"plans": self._plans, "planning": self._busy, "pending": self._pending(),
+                                  "plan_start": cur.plan_start if cur else None, "aircraft": []}
+        if result is not None and cur is not None:
+            land = result.landing_times()
+            status["aircraft"] = [{"order": k, "callsign": cs, "landing_time_s": land[cs],
+                                   "verified": _aircraft_verified(result, cs)}
+                                  for k, cs in enumerate(result.order, 1)]
+        try:
+            self.out_dir.mkdir(parents=True, exist_ok=True)
+            tmp = self.out_dir / (STATUS_FILE + ".tmp")
+            tmp.write_text(json.dumps(status, allow_nan=True) + "\n", encoding="utf-8")
+            os.replace(tmp, self.out_dir / STATUS_FILE)
+        except OSError as exc:
+            log.error("cannot write %s: %s", self.out_dir / STATUS_FILE, exc)
+
+    # -- services (services-node thread; they may block) ---------------------------------------------
+    def _wait(self, future: Future[PlanOutcome]) -> PlanOutcome:
+        try:
+            return future.result(timeout=self.params.service_timeout_s)
+        except TimeoutError:
+            return PlanOutcome(False, f"no plan within {self.params.service_timeout_s:.0f} s")
+
+    def _srv_trigger(self, request: Any, response: Any) -> Any:
+        del request
+        if not len(self.tracks):
+            response.success, response.message = False, "no radar tracks yet"
+            return response
+        outcome = self._wait(self.request("service plan"))
+        response.success, response.message = outcome.success, outcome.message
+        return response
+
+    def _srv_plan_landing(self, request: Any, response: Any) -> Any:
+        explicit: dict[str, Track] = {}
+        for i, msg in enumerate(request.aircraft):
+            try:
+                callsign, stamp, state, speed, wake = aircraft_state_to_planner(msg)
+                track = Track(callsign, stamp, state, speed, wake)
+                reason = check_track(track, str(msg.header.frame_id), self.params.frame_id, self.scenario.airspace)
+            except Exception as exc:
+                reason, callsign = str(exc), "?"
+            if reason is None and callsign in explicit:
+                reason = "duplicate callsign"
+            if reason is not None:
+                response.success = False
+                response.message = f"aircraft[{i}] ({callsign}): {reason}"
+                log.error("plan_landing request rejected: %s", response.message)
+                return response
+            explicit[callsign] = track
+        if explicit:
+            future = self.request(f"plan_landing service ({len(explicit)} explicit states)", explicit)
+        elif len(self.tracks):
+            future = self.request("plan_landing service (radar tracks)")
+        else:
+            response.success, response.message = False, "no aircraft given and no radar tracks yet"
+            return response
+        outcome = self._wait(future)
+        response.success, response.message = outcome.success, outcome.message
+        if outcome.plan_msg is not None:
+            response.plan = outcome.plan_msg
+        response.paths = list(outcome.path_msgs)
+        return response
+
+    # -- life cycle -------------------------------------------------------------------------------------
+    def _spin_services(self) -> None:
+        try:
+            self.srv_node.spin()
+        except Exception:
+            if not self._stop:
+                log.exception("services executor failed")
+
+    def spin(self) -> None:
+        """Run until :meth:`stop` (e.g. from a signal handler)."""
+        self._worker.start()
+        self._srv_thread.start()
+        self._write_status()
+        try:
+            self.node.spin()
+        finally:
+            self.stop()
+
+    def stop(self) -> None:
+        with self._lock:
+            if self._stop:
+                return
+            self._stop = True
+            jobs = list(self._explicit) + ([self._radar_job] if self._radar_job else [])
+            self._explicit.clear()
+            self._radar_job = None
+            self._lock.notify_all()
+        for job in jobs:
+            for fut in job.waiters:
+                if not fut.done():
+                    fut.set_result(PlanOutcome(False, "planner is shutting down"))
+        self.node.shutdown()
+        self.srv_node.shutdown()
+        self._worker.join(timeout=1.0)
+
+
+def _default_path(name: str) -> str | None:
+    for cand in (Path(name), REPO / name):
+        if cand.exists():
+            return str(cand)
+    return None
+
+
+def parse_args(argv: list[str] | None = None) -> argparse.Namespace:
+    p = argparse.ArgumentParser(prog="mal-planner-node", description=__doc__.split("\n")[0])
+    p.add_argument("--scenario", default=None, help="scenario YAML (default scenarios/thesis.yaml)")
+    p.add_argument("--params", default=None, help="ROS 2 params YAML (default config/planner.params.yaml)")
+    p.add_argument("--out", default=None, help="output folder (overrides the output_dir parameter)")
+    p.add_argument("--namespace", default="", help="node namespace")
+    p.add_argument("--backend", default="auto", choices=("auto", "rclpy", "cyclone"), help="ROS backend")
+    p.add_argument("--log-level", default="INFO", help="Python log level (default INFO)")
+    return p.parse_args(argv)
+
+
+def setup_logging(level: str = "INFO") -> None:
+    logging.basicConfig(level=getattr(logging, level.upper(), logging.INFO), stream=sys.stderr,
+                        format="[%(levelname)s] [%(asctime)s] [%(name)s]: %(message)s")
+
+
+def main(argv: list[str] | None = None) -> int:
+    """Run the node; 0 on SIGINT/SIGTERM, 2 when the scenario cannot be loaded."""
+    args = parse_args(argv)
+    setup_logging(args.log_level)
+    scenario_path = args.scenario or _default_path("scenarios/thesis.yaml") or "scenarios/thesis.yaml"
+    params_file = args.params if args.params is not None else _default_path("config/planner.params.yaml")
+    try:
+        scenario = load_scenario(scenario_path)
+    except ScenarioError as exc:
+        log.error("cannot load the scenario: %s", exc)
+        return 2
+    if not all(CALLSIGN_RE.match(a.callsign) for a in scenario.aircraft):
+        log.error("scenario %s: callsigns must be ROS name-safe", scenario_path)
+        return 2
+    planner = PlannerNode(scenario, params_file=params_file, output_dir=args.out, namespace=args.namespace,
+                          backend=args.backend)
+
+    def on_signal(signum: int, _frame: Any) -> None:
+        log.info("%s: shutting down", signal.Signals(signum).name)
+        planner.node.shutdown()
+
+    signal.signal(signal.SIGTERM, on_signal)
+    signal.signal(signal.SIGINT, on_signal)
+    planner.spin()
+    logging.shutdown()
+    if planner._worker.is_alive():  # a solve in C code cannot be interrupted: do not wait for it
+        os._exit(0)
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
