@@ -100,8 +100,9 @@ def validation_report(result: PlanResult) -> str:
               "| aircraft | bank min (deg) | bank max (deg) | max deviation (nm) | runway error (nm) |",
               "|---|---|---|---|---|"]
     for a in rep.aircraft:
+        runway = a.runway_error.get("position_error_nm", float("nan"))
         lines.append(f"| {a.callsign} | {a.bank_min_deg:.2f} | {a.bank_max_deg:.2f} | "
-                     f"{a.max_position_deviation_nm:.2e} | {a.runway_error.get('position_error_nm', float('nan')):.2e} |")
+                     f"{a.max_position_deviation_nm:.2e} | {runway:.2e} |")
     lines += ["", "## Gate events", "", "| aircraft | t (s) | x (nm) | z (nm) | gamma (deg) | heading (deg) |",
               "|---|---|---|---|---|---|"]
     for a in rep.aircraft:

@@ -30,8 +30,14 @@ class Tolerances:
     """Largest position difference between the solved and the re-integrated trajectory."""
     deviation_angle: float = math.radians(1.0)
     position_nm: float = 1e-3
-    """Slack (about 2 m) on airspace bounds, gate hole and runway position of the flown trajectory."""
+    """Slack (about 2 m) on the gate hole and the runway position of the flown trajectory."""
+    airspace_nm: float = 5e-3
+    """Slack on the airspace bounds: a plan may ride a bound (e.g. the ground before the threshold) and
+    the flown trajectory may drift across it by a fraction of ``deviation_nm``."""
     separation_nm: float = 1e-3
+    obstacle_rel: float = 1e-5
+    """Obstacles are shrunk by this fraction of their semi-axes (a trajectory riding an active obstacle
+    constraint dips in between collocation points by ~1e-6 of the size)."""
     angle: float = math.radians(0.1)
     """Slack on gate and runway attitudes and on the bank-angle limit."""
     landing_time_s: float = 1e-3
@@ -50,6 +56,7 @@ class AircraftCheck:
     n_v_min: float
     airspace_violation_nm: float
     obstacle_hits: list[str] = field(default_factory=list)
+    obstacle_hit_times_s: list[float] = field(default_factory=list)
     gate_events: list[dict] = field(default_factory=list)
     runway_error: dict = field(default_factory=dict)
 
@@ -59,6 +66,8 @@ class PairCheck:
     pair: str
     min_distance_nm: float
     at_time_s: float
+    violation_times_s: list[float] = field(default_factory=list)
+    """Times of the local minima of the distance below the required separation."""
 
 
 @dataclass
@@ -71,6 +80,12 @@ class VerificationReport:
 
     def to_dict(self) -> dict:
         return asdict(self)
+
+    def violation_times(self) -> list[float]:
+        """Times at which the flown trajectories break separation or enter an obstacle (for refinement)."""
+        times = [t for p in self.pairs for t in p.violation_times_s]
+        times += [t for a in self.aircraft for t in a.obstacle_hit_times_s]
+        return sorted(times)
 
 
 def fly(traj: Trajectory, scenario: Scenario, tol: Tolerances) -> tuple[np.ndarray, np.ndarray]:
@@ -161,14 +176,18 @@ def verify(scenario: Scenario, trajectories: list[Trajectory], tol: Tolerances |
         below = scenario.airspace[:, 0] - x[:, :3]
         above = x[:, :3] - scenario.airspace[:, 1]
         violation = float(max(np.max(below), np.max(above), 0.0))
-        if violation > tol.position_nm:
+        if violation > tol.airspace_nm:
             reasons.append(f"{cs}: leaves the airspace by {violation:.4g} nm")
         # Obstacles: exact containment of every sample and of every segment between samples.
-        hits = []
+        hits, hit_times = [], []
         for ob in scenario.obstacles:
-            if np.any(ob.contains(x[:, :3])) or np.any(ob.segment_hits(x[:-1, :3], x[1:, :3])):
+            shrink = -tol.obstacle_rel
+            inside = ob.contains(x[:, :3], margin=shrink)
+            inside[:-1] |= ob.segment_hits(x[:-1, :3], x[1:, :3], margin=shrink)
+            if np.any(inside):
                 hits.append(ob.name)
-                reasons.append(f"{cs}: enters obstacle {ob.name!r}")
+                hit_times += t[inside].tolist()
+                reasons.append(f"{cs}: enters obstacle {ob.name!r} at t={t[inside][0]:.2f} s")
         # Gates: every plane crossing must be in the hole, in the right direction, with the set attitude.
         events = []
         for gate in scenario.gates:
@@ -184,8 +203,8 @@ def verify(scenario: Scenario, trajectories: list[Trajectory], tol: Tolerances |
                 if not ev["direction_ok"]:
                     reasons.append(f"{cs}: crosses {gate.name!r} backwards at t={ev['time_s']:.2f} s")
                 if ev["gamma_error"] > tol.angle or ev["heading_error"] > tol.angle:
-                    reasons.append(f"{cs}: attitude at {gate.name!r} off by "
-                                   f"{math.degrees(ev['gamma_error']):.3g} / {math.degrees(ev['heading_error']):.3g} deg")
+                    g_err, h_err = math.degrees(ev["gamma_error"]), math.degrees(ev["heading_error"])
+                    reasons.append(f"{cs}: attitude at {gate.name!r} off by {g_err:.3g} / {h_err:.3g} deg")
             events.extend(crossings)
         # Bank angle and load factors (on the plan's samples: the controls are what the plan commands).
         n_h, n_v = traj.controls[:, 0], traj.controls[:, 1]
@@ -213,7 +232,7 @@ def verify(scenario: Scenario, trajectories: list[Trajectory], tol: Tolerances |
                 abs(t[-1] - landing_times[cs]) > tol.landing_time_s:
             reasons.append(f"{cs}: lands at {t[-1]:.3f} s, not the fixed {landing_times[cs]:.3f} s")
         checks.append(AircraftCheck(cs, float(t[-1]), pos_dev, ang_dev, float(np.min(bank)), float(np.max(bank)),
-                                    float(np.min(n_v)), violation, hits, events, runway))
+                                    float(np.min(n_v)), violation, hits, hit_times, events, runway))
     # Landing-time spacing in landing order.
     order = sorted(checks, key=lambda c: c.landing_time)
     for a, b in itertools.pairwise(order):
@@ -238,7 +257,9 @@ def _separation(flown: dict[str, tuple[np.ndarray, np.ndarray]], scenario: Scena
         pb = np.stack([np.interp(grid, tb, xb[:, k]) for k in range(3)], axis=1)
         dist = np.linalg.norm(pa - pb, axis=1)
         k = int(np.argmin(dist))
-        pairs.append(PairCheck(f"{a}-{b}", float(dist[k]), float(grid[k])))
+        low = dist < scenario.separation_nm - tol.separation_nm
+        local_min = np.r_[True, dist[1:] <= dist[:-1]] & np.r_[dist[:-1] <= dist[1:], True]
+        pairs.append(PairCheck(f"{a}-{b}", float(dist[k]), float(grid[k]), grid[low & local_min].tolist()))
         if dist[k] < scenario.separation_nm - tol.separation_nm:
             reasons.append(f"{a}-{b}: {dist[k]:.4f} nm apart at t={grid[k]:.2f} s "
                            f"(minimum {scenario.separation_nm} nm)")

@@ -49,11 +49,14 @@ def _wrap_near(target: float, reference: float) -> float:
 
 def build_landing_problem(scenario: Scenario, layout: PhaseLayout, guesses: list[AircraftGuess],
                           fixed_landing_times: bool = True, mesh: PhaseMesh | None = None,
-                          horizon: float | None = None, gate_margin: float = 0.002) -> LandingProblem:
+                          horizon: float | None = None, gate_margin: float = 0.002,
+                          clearance: float = 1e-4) -> LandingProblem:
     """Assemble the OCP; ``guesses`` are in landing order and place each phase's initial guess.
 
     ``gate_margin`` (nm) shrinks the hole for the gate event: the event sits on the wall's exit face, and
     passing exactly at the hole's edge would graze the rounded p-norm pieces inside the wall's thickness.
+    ``clearance`` is the lower bound of ln ||r||_p at the collocation points (1e-4: obstacles inflated by
+    0.01%), so that an active obstacle constraint does not dip into the obstacle between the points.
     """
     n = len(layout.callsigns)
     aircraft = [scenario.aircraft_by_callsign(cs) for cs in layout.callsigns]
@@ -67,7 +70,7 @@ def build_landing_problem(scenario: Scenario, layout: PhaseLayout, guesses: list
         who = layout.airborne(k)
         members.append(who)
         phases.append(_phase(k, who, scenario, layout, aircraft, guesses, gate, mesh, horizon,
-                             (event_times[k - 1] if k else 0.0, event_times[k]), gate_margin))
+                             (event_times[k - 1] if k else 0.0, event_times[k]), gate_margin, clearance))
     n_states = len(STATE_NAMES)
 
     def index_of(k: int, i: int) -> int:
@@ -112,7 +115,8 @@ def build_landing_problem(scenario: Scenario, layout: PhaseLayout, guesses: list
     return LandingProblem(problem, layout, n, fixed_landing_times)
 
 
-def _phase(k, who, scenario, layout, aircraft, guesses, gate, mesh, horizon, guess_span, gate_margin) -> Phase:
+def _phase(k, who, scenario, layout, aircraft, guesses, gate, mesh, horizon, guess_span, gate_margin,
+           clearance) -> Phase:
     states, controls = [], []
     x_lb, x_ub, u_lb, u_ub = [], [], [], []
     xf_lb, xf_ub = [], []
@@ -182,7 +186,7 @@ def _phase(k, who, scenario, layout, aircraft, guesses, gate, mesh, horizon, gue
 
     p_lb, p_ub = [], []
     for j in range(n_ac):
-        p_lb += [0.0] * len(relevant[j]) + [-math.inf, -math.inf]
+        p_lb += [clearance] * len(relevant[j]) + [-math.inf, -math.inf]
         p_ub += [math.inf] * len(relevant[j]) + [0.0, 0.0]
     sep2 = scenario.separation_nm**2
     p_lb += [sep2] * len(pairs)

@@ -51,6 +51,8 @@ class LandingOptions:
     refine: bool = True
     output_dt: float = 0.25
     gate_margin_nm: float = 0.002
+    obstacle_clearance: float = 1e-4
+    """Lower bound of ln ||r||_p for obstacles at the collocation points (they are inflated by 0.01%)."""
     ipopt: dict = field(default_factory=lambda: dict(LANDING_IPOPT))
     """IPOPT options on top of the engine's defaults (see LANDING_IPOPT)."""
     """Keep the gate event this far inside the hole's edges (the wall pieces are rounded p-norm shapes)."""
@@ -92,6 +94,19 @@ class LandingResult:
                 for m in self.mesh_history
             ],
         }
+
+
+def split_segments(mesh: PhaseMesh, fractions: list[float]) -> PhaseMesh:
+    """Split every segment containing one of ``fractions`` (of the phase) into two halves."""
+    breaks, degrees = [mesh.breaks[0]], []
+    for s, n in enumerate(mesh.degrees):
+        a, b = mesh.breaks[s], mesh.breaks[s + 1]
+        if any(a <= f <= b for f in fractions):
+            breaks.append(0.5 * (a + b))
+            degrees.append(n)
+        breaks.append(b)
+        degrees.append(n)
+    return PhaseMesh(tuple(breaks), tuple(degrees))
 
 
 def project_controls(u: np.ndarray, limits: ControlLimits) -> np.ndarray:
@@ -144,7 +159,8 @@ class LandingOptimizer:
         t0 = time.perf_counter()
         self.problem: LandingProblem = build_landing_problem(
             scenario, self.layout, guesses, options.fixed_landing_times,
-            PhaseMesh.uniform(options.segments, options.degree), gate_margin=options.gate_margin_nm)
+            PhaseMesh.uniform(options.segments, options.degree), gate_margin=options.gate_margin_nm,
+            clearance=options.obstacle_clearance)
         self.solver = OCPSolver(self.problem.problem, OCPOptions(
             tol=options.nlp_tol, max_iter=options.max_nlp_iterations, refine=options.refine,
             mesh_tol=options.mesh_tol, n_min=options.n_min, n_max=options.n_max,
@@ -176,12 +192,40 @@ class LandingOptimizer:
         builds_before = self.solver.n_builds
         phase_init = phase_guesses(scenario, layout_for(scenario, guesses), guesses) if guesses else None
         meshes = warm.solution.meshes if warm is not None else None
-        sol = self.solver.solve(params, guess=phase_init, meshes=meshes)
+        sol = self.solver.solve(params, guess=phase_init, meshes=meshes, warm=True if warm is not None else None)
         wall = time.perf_counter() - t0
         build_time = sum(m.build_time for m in sol.mesh_history)
         log.info("optimizer: %s in %.2f s (%d NLP builds, objective %.4f)", sol.status, wall,
                  self.solver.n_builds - builds_before, sol.objective)
         return self._result(sol, wall, build_time, landing_times)
+
+    def refine_at(self, previous: LandingResult, times: list[float], scenario: Scenario | None = None
+                  ) -> LandingResult:
+        """Re-solve with the mesh segments containing ``times`` split in two (warm start).
+
+        Path constraints (separation, obstacles) hold only at the collocation points; where the
+        independent verification finds the flown trajectory breaking one between them, more points
+        there close the gap.
+        """
+        scenario = scenario or self.scenario
+        meshes = []
+        for phase, mesh in zip(previous.solution.phases, previous.solution.meshes, strict=True):
+            duration = phase.tf - phase.t0
+            fracs = [(t - phase.t0) / duration for t in times if phase.t0 <= t <= phase.tf and duration > 0]
+            meshes.append(split_segments(mesh, fracs))
+        landing_times = [previous.required_landing_times[cs] for cs in self.layout.callsigns]
+        params = self.problem.params(scenario, landing_times)
+        t0 = time.perf_counter()
+        sol = self.solver.solve(params, guess=previous.solution, meshes=meshes)
+        wall = time.perf_counter() - t0
+        log.info("optimizer (refined at %d places): %s in %.2f s", len(times), sol.status, wall)
+        result = self._result(sol, wall, sum(m.build_time for m in sol.mesh_history), landing_times)
+        # Report the whole effort: the previous solves and this one.
+        result.solve_time += previous.solve_time
+        result.build_time += previous.build_time
+        result.nlp_iterations += previous.nlp_iterations
+        result.mesh_history = previous.mesh_history + result.mesh_history
+        return result
 
     def _result(self, sol: OCPSolution, wall: float, build_time: float, required: list[float]) -> LandingResult:
         lay = self.layout

@@ -119,12 +119,15 @@ class OCPSolver:
         guess: GuessArg = None,
         meshes: Sequence[PhaseMesh] | None = None,
         refine_mesh: bool | None = None,
+        warm: bool | None = None,
     ) -> OCPSolution:
         """Solve, refining the mesh until the error estimate is below ``mesh_tol``.
 
         ``guess`` is a list of per-phase :class:`PhaseGuess` (``None`` entries use the
         phase's own guess) or a previous :class:`OCPSolution` (polynomial warm start).
-        ``meshes`` overrides the phases' initial meshes (e.g. ``previous.meshes``).
+        ``meshes`` overrides the phases' initial meshes (e.g. ``previous.meshes``). ``warm`` forces the
+        warm-start IPOPT options on (or off) for the first solve, e.g. for a guess built from a previous
+        solution shifted in time; by default they are used when ``guess`` is an :class:`OCPSolution`.
         """
         opt = self.options
         do_refine = opt.refine if refine_mesh is None else refine_mesh
@@ -141,12 +144,12 @@ class OCPSolver:
         converged = False
         for it in range(opt.max_mesh_iterations + 1):
             visited.add(tuple(m.key() for m in cur))
-            warm = isinstance(src, OCPSolution)
-            tr, built = self.transcription(cur, warm)
+            warm_now = isinstance(src, OCPSolution) if warm is None or it > 0 else warm
+            tr, built = self.transcription(cur, warm_now)
             build_time = tr.build_time if built else 0.0
             w0 = tr.initial_guess(src)
             res = tr.solve(p, w0)
-            if not res.success and warm and self.options.warm_ipopt:
+            if not res.success and warm_now and self.options.warm_ipopt:
                 log.info("warm-started NLP failed (%s); retrying cold", res.status)
                 total_time += res.solve_time
                 total_iter += res.iterations

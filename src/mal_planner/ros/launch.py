@@ -101,7 +101,8 @@ def _default(name: str) -> str:
 
 def parse_args(argv: list[str] | None = None) -> argparse.Namespace:
     p = argparse.ArgumentParser(prog="mal-launch", description=__doc__.split("\n")[0],
-                                epilog=__doc__.split("\n\n", 2)[2], formatter_class=argparse.RawDescriptionHelpFormatter)
+                                epilog=__doc__.split("\n\n", 2)[2],
+                                formatter_class=argparse.RawDescriptionHelpFormatter)
     src = p.add_mutually_exclusive_group(required=True)
     src.add_argument("--replay", metavar="BAG", help="replay recorded radar tracks from this bag")
     src.add_argument("--simulate", action="store_true", help="run the radar simulator on the scenario")
@@ -218,9 +219,11 @@ class Launcher:
             if not finite or source_done_at is None:
                 continue
             status = read_status(self.out)
-            done = bool(status and status["plans"] >= 1 and not status["planning"] and not status["pending"])
+            done = bool(status and status["attempts"] >= 1 and not status["planning"] and not status["pending"])
             idle_since = (idle_since or time.monotonic()) if done else None
-            if idle_since is not None and time.monotonic() - idle_since >= 1.0:
+            if status and idle_since is not None and time.monotonic() - idle_since >= 1.0:
+                if status["plans"] < 1:
+                    return self._shutdown(failed=f"the planner published no plan: {status['last_error']}")
                 return self._shutdown(status=status)
             if time.monotonic() - source_done_at > self.args.timeout:
                 return self._shutdown(failed=f"no plan within {self.args.timeout:.0f} s after the radar ended")

@@ -128,6 +128,8 @@ class PlannerNode:
         self._stop = False
         self._current: CurrentPlan | None = None
         self._plans = 0
+        self._attempts = 0
+        self._last_error = ""
         self._epoch: float | None = None
         self._first_rx: float | None = None
         self._initial_requested = False
@@ -290,6 +292,8 @@ class PlannerNode:
             with self._lock:
                 self._busy = False
                 self._last_done = time.monotonic()
+                self._attempts += 1
+                self._last_error = "" if outcome.success else outcome.message
             self._write_status()
             for fut in job.waiters:
                 if not fut.done():
@@ -311,19 +315,6 @@ class PlannerNode:
             return "no aircraft to plan (all left out)"
         return inputs
 
-    def _retarget_landing_times(self, inputs: PlanInputs) -> None:
-        """Keep a warm-started optimizer's landing times fixed in radar time (they are relative to the start)."""
-        opt, cur = getattr(self.planner, "_optimizer", None), self._current
-        if opt is None or cur is None:
-            return
-        callsigns = list(opt.layout.callsigns)
-        planned = {a.callsign for a in inputs.scenario.aircraft}
-        if set(callsigns) != planned or not planned <= set(cur.landing_abs):
-            return
-        times = [cur.landing_abs[cs] - inputs.plan_start for cs in callsigns]
-        if min(times) > 0:
-            opt.landing_times = times
-
     def _plan(self, job: PlanJob) -> PlanOutcome:
         t0 = time.perf_counter()
         inputs = self._inputs(job)
@@ -333,9 +324,13 @@ class PlannerNode:
         sc = inputs.scenario
         log.info("planning (%s): %d aircraft [%s] from t=%.3f", "; ".join(job.reasons), len(sc.aircraft),
                  ", ".join(a.callsign for a in sc.aircraft), inputs.plan_start)
-        self._retarget_landing_times(inputs)
         try:
-            result = self.planner.plan(sc, reuse=True)
+            last = self.planner.last
+            result = self.planner.plan(sc, reuse=True, start_time=inputs.plan_start)
+            if self.params.optimize and not result.optimized and last is not None and result.initial is last.initial:
+                status = result.landing.status if result.landing else "not run"
+                log.warning("warm replan failed (%s): planning from scratch", status)
+                result = self.planner.plan(sc, reuse=False, start_time=inputs.plan_start)
         except Exception as exc:
             msg = f"planning failed: {' '.join(str(exc).split()) or type(exc).__name__}"
             log.error("%s (keeping the last plan)", msg)
@@ -343,6 +338,13 @@ class PlannerNode:
             self._publish_diagnostics(None, msg)
             plan = self._landing_plan_msg(None, inputs.plan_start, [a.callsign for a in sc.aircraft])
             return PlanOutcome(False, msg, plan)
+        if self.params.optimize and not result.optimized and self._current is not None:
+            msg = f"optimizer {result.landing.status if result.landing else 'not run'}"
+            log.error("no optimal plan (%s): keeping the last plan", msg)
+            self._publish_diagnostics(result, f"{msg}; keeping the last plan")
+            return PlanOutcome(False, f"{msg}; keeping the last plan", self._landing_plan_msg(result, inputs.plan_start,
+                                                                                                 result.order),
+                               list(self._path_msgs(result, inputs.plan_start).values()), result)
         t_plan = time.perf_counter() - t0
         plan_msg, path_msgs = self._publish(result, inputs, job)
         t_pub = time.perf_counter() - t0 - t_plan
@@ -427,8 +429,9 @@ class PlannerNode:
                                                                        QOS_LATCHED)
             pub.publish(msg)
         for cs in self._published_paths - set(paths):  # no longer planned: clear its path
-            self._path_pubs[cs].publish(path_msg(self.types, cs, plan_start, [], np.zeros((0, 5)),
-                                                 frame=self.params.frame_id))
+            header = self.types.msg("std_msgs/msg/Header")(stamp=time_to_msg(self.types, plan_start),
+                                                           frame_id=self.params.frame_id)
+            self._path_pubs[cs].publish(self.types.msg("nav_msgs/msg/Path")(header=header, poses=[]))
         self._published_paths = set(paths)
         self.plan_pub.publish(plan_msg)
         self._publish_markers(list(trajectories.values()), plan_start)
@@ -471,7 +474,8 @@ class PlannerNode:
         if self.out_dir is None:
             return
         cur, result = self._current, self.planner.last
-        status: dict[str, Any] = {"plans": self._plans, "planning": self._busy, "pending": self._pending(),
+        status: dict[str, Any] = {"plans": self._plans, "attempts": self._attempts, "last_error": self._last_error,
+                                  "planning": self._busy, "pending": self._pending(),
                                   "plan_start": cur.plan_start if cur else None, "aircraft": []}
         if result is not None and cur is not None:
             land = result.landing_times()
