@@ -6,6 +6,7 @@ its own ROS_DOMAIN_ID; subscribers and service clients are separate processes to
 
 from __future__ import annotations
 
+import contextlib
 import json
 import logging
 import queue
@@ -53,6 +54,19 @@ def start_planner(snippet, params: Path, *extra: str) -> Snippet:  # noqa: F811
 def start_replay(snippet, rate: float) -> Snippet:  # noqa: F811
     args = [str(BAG), "--rate", str(rate), "--wait-for-subscribers", "10"]
     return snippet(f"import sys\nfrom mal_planner.ros.replay import main\nsys.exit(main({args!r}))\n")
+
+
+@contextlib.contextmanager
+def dump_on_failure(**snips: Snippet):
+    """On a failure, print the children's output (the planner's log explains most failures)."""
+    try:
+        yield
+    except BaseException:
+        for name, snip in snips.items():
+            while not snip.lines.empty():
+                snip.output.append(snip.lines.get_nowait())
+            print(f"---- {name} ----\n" + "\n".join(snip.output[-80:]))
+        raise
 
 
 def wait_for(snip: Snippet, text: str, timeout: float = 90.0) -> str:
@@ -179,62 +193,63 @@ print("published", flush=True)
 def test_replay_to_paths_services_and_latched(snippet, tmp_path: Path) -> None:  # noqa: F811
     """Replayed radar -> planner -> paths in a separate subscriber; both services; late subscriber; NaN input."""
     planner = start_planner(snippet, params_file(tmp_path))
-    wait_for(planner, "planner ready", 30)
-    listener = snippet(PATH_LISTENER)
-    listener.wait_for_line("listening")
-    start_replay(snippet, 2.0)
-    wait_for(planner, "plan #1", 150)
-    result = json.loads(listener.wait_for_line("RESULT ", 30)[len("RESULT "):])
+    with dump_on_failure(planner=planner):
+        wait_for(planner, "planner ready", 30)
+        listener = snippet(PATH_LISTENER)
+        listener.wait_for_line("listening")
+        start_replay(snippet, 2.0)
+        wait_for(planner, "plan #1", 150)
+        result = json.loads(listener.wait_for_line("RESULT ", 30)[len("RESULT "):])
 
-    assert result["plan_frame"] == "runway"
-    assert BAG_T0 < result["plan_stamp"] < BAG_T0 + 20.0
-    assert sorted(result["order"]) == ["A1", "A2", "A3"]
-    assert result["status"] == [0, 0, 0]  # OPTIMAL
-    for rank, cs in enumerate(result["order"]):
-        p = result["paths"][cs]
-        assert p["frame"] == "runway" and p["frames"] == ["runway"]
-        stamps = p["stamps"]
-        assert stamps[0] == pytest.approx(result["plan_stamp"], abs=1e-6)
-        assert all(b > a for a, b in zip(stamps, stamps[1:], strict=False))
-        assert stamps[-1] - stamps[0] == pytest.approx(result["landing"][cs], abs=1e-3)
-        # metres within the thesis airspace [-3, 3] x [0, 6] x [0, 0.3] nm (+ a little slack)
-        assert p["min"][0] > -3.05 * M_PER_NM and p["max"][0] < 3.05 * M_PER_NM
-        assert p["min"][1] > -0.05 * M_PER_NM and p["max"][1] < 6.05 * M_PER_NM
-        assert p["min"][2] > -0.05 * M_PER_NM and p["max"][2] < 0.35 * M_PER_NM
-        assert p["max"][1] > 2.0 * M_PER_NM  # genuinely metres, not nm
-        assert max(abs(c) for c in p["last"]) < 50.0  # ends at the runway threshold
-        assert p["qnorm"] == pytest.approx(1.0, abs=1e-6)
-        if rank:  # landing order = order of the landing times
-            assert result["landing"][cs] > result["landing"][result["order"][rank - 1]]
+        assert result["plan_frame"] == "runway"
+        assert BAG_T0 < result["plan_stamp"] < BAG_T0 + 20.0
+        assert sorted(result["order"]) == ["A1", "A2", "A3"]
+        assert result["status"] == [0, 0, 0]  # OPTIMAL
+        for rank, cs in enumerate(result["order"]):
+            p = result["paths"][cs]
+            assert p["frame"] == "runway" and p["frames"] == ["runway"]
+            stamps = p["stamps"]
+            assert stamps[0] == pytest.approx(result["plan_stamp"], abs=1e-6)
+            assert all(b > a for a, b in zip(stamps, stamps[1:], strict=False))
+            assert stamps[-1] - stamps[0] == pytest.approx(result["landing"][cs], abs=1e-3)
+            # metres within the thesis airspace [-3, 3] x [0, 6] x [0, 0.3] nm (+ a little slack)
+            assert p["min"][0] > -3.05 * M_PER_NM and p["max"][0] < 3.05 * M_PER_NM
+            assert p["min"][1] > -0.05 * M_PER_NM and p["max"][1] < 6.05 * M_PER_NM
+            assert p["min"][2] > -0.05 * M_PER_NM and p["max"][2] < 0.35 * M_PER_NM
+            assert p["max"][1] > 2.0 * M_PER_NM  # genuinely metres, not nm
+            assert max(abs(c) for c in p["last"]) < 50.0  # ends at the runway threshold
+            assert p["qnorm"] == pytest.approx(1.0, abs=1e-6)
+            if rank:  # landing order = order of the landing times
+                assert result["landing"][cs] > result["landing"][result["order"][rank - 1]]
 
-    # Services from a client process; radar callbacks keep running while the service waits for its plan.
-    go = tmp_path / "go"
-    bad = snippet(BAD_INPUT % {"repeat": 1, "go": str(go)})
-    bad.wait_for_line("ready", 30)
-    client = snippet(CLIENT % {"scenario": str(SCENARIO), "t0": BAG_T0})
-    client.wait_for_line("calling", 30)
-    wait_for(planner, "plan requested: service plan", 30)
-    go.touch()  # NaN radar input while the Trigger call waits for its plan
-    wait_for(planner, "bad AircraftState on radar/tracks for 'NAN1'", 30)
-    assert not any("TRIGGER" in line for line in list(client.lines.queue))  # the call is still waiting
-    trig = json.loads(client.wait_for_line("TRIGGER ", 150)[len("TRIGGER "):])
-    assert trig["success"], trig
-    bad.wait_for_line("published", 30)
-    landing = json.loads(client.wait_for_line("LANDING ", 150)[len("LANDING "):])
-    assert landing["success"], landing
-    assert landing["n_paths"] == 2 and sorted(landing["order"]) == ["A1", "A3"]
-    assert landing["plan_stamp"] == pytest.approx(BAG_T0 + 30.0)
-    assert landing["first_pose_stamp"] == pytest.approx(BAG_T0 + 30.0)
+        # Services from a client process; radar callbacks keep running while the service waits for its plan.
+        go = tmp_path / "go"
+        bad = snippet(BAD_INPUT % {"repeat": 1, "go": str(go)})
+        bad.wait_for_line("ready", 30)
+        client = snippet(CLIENT % {"scenario": str(SCENARIO), "t0": BAG_T0})
+        client.wait_for_line("calling", 30)
+        wait_for(planner, "plan requested: service plan", 30)
+        go.touch()  # NaN radar input while the Trigger call waits for its plan
+        wait_for(planner, "bad AircraftState on radar/tracks for 'NAN1'", 30)
+        assert not any("TRIGGER" in line for line in list(client.lines.queue))  # the call is still waiting
+        trig = json.loads(client.wait_for_line("TRIGGER ", 150)[len("TRIGGER "):])
+        assert trig["success"], trig
+        bad.wait_for_line("published", 30)
+        landing = json.loads(client.wait_for_line("LANDING ", 150)[len("LANDING "):])
+        assert landing["success"], landing
+        assert landing["n_paths"] == 2 and sorted(landing["order"]) == ["A1", "A3"]
+        assert landing["plan_stamp"] == pytest.approx(BAG_T0 + 30.0)
+        assert landing["first_pose_stamp"] == pytest.approx(BAG_T0 + 30.0)
 
-    # A late subscriber still gets the latched plan and paths (the explicit-state plan, published last;
-    # A2, no longer planned, has an empty path).
-    late = snippet(PATH_LISTENER)
-    late_result = json.loads(late.wait_for_line("RESULT ", 30)[len("RESULT "):])
-    assert late_result["plan_stamp"] == pytest.approx(BAG_T0 + 30.0)
-    assert sorted(late_result["order"]) == ["A1", "A3"]
-    assert late_result["paths"]["A2"]["n"] == 0
-    assert late_result["paths"]["A1"]["stamps"][0] == pytest.approx(BAG_T0 + 30.0)
-    assert planner.proc.poll() is None
+        # A late subscriber still gets the latched plan and paths (the explicit-state plan, published last;
+        # A2, no longer planned, has an empty path).
+        late = snippet(PATH_LISTENER)
+        late_result = json.loads(late.wait_for_line("RESULT ", 30)[len("RESULT "):])
+        assert late_result["plan_stamp"] == pytest.approx(BAG_T0 + 30.0)
+        assert sorted(late_result["order"]) == ["A1", "A3"]
+        assert late_result["paths"]["A2"]["n"] == 0
+        assert late_result["paths"]["A1"]["stamps"][0] == pytest.approx(BAG_T0 + 30.0)
+        assert planner.proc.poll() is None
 
 
 def test_restart_in_the_middle_of_a_replay(snippet, tmp_path: Path) -> None:  # noqa: F811
