@@ -34,6 +34,7 @@ planner:
     output_dt: 1.0
     settle_time_s: 1.0
     deviation_threshold_m: 0.0
+    verify: false
     figures: false
 {extra}"""
 

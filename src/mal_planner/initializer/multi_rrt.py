@@ -16,7 +16,7 @@ import numpy as np
 from scipy.spatial import cKDTree
 
 from mal_planner.initializer.collision import CollisionChecker
-from mal_planner.initializer.planners import PlanningFailed
+from mal_planner.initializer.planners import PlanningFailed, require_free_endpoints
 from mal_planner.initializer.smoothing import smooth_path
 
 
@@ -163,10 +163,7 @@ class MultiRRT:
         self, checker: CollisionChecker, start: np.ndarray, goal: np.ndarray, rng: np.random.Generator
     ) -> np.ndarray:
         """The unsmoothed path through the merged tree (K, 3)."""
-        start, goal = np.asarray(start, dtype=float), np.asarray(goal, dtype=float)
-        for name, p in (("start", start), ("goal", goal)):
-            if not checker.point_free(p):
-                raise PlanningFailed(f"multi-rrt: the {name} {np.round(p, 4).tolist()} is not free")
+        start, goal = require_free_endpoints(checker, self.spec, start, goal)
         if checker.segment_free(start, goal):
             self.last_iterations, self.last_trees = 0, 1
             return np.array([start, goal])

@@ -17,7 +17,7 @@ from functools import cache
 import numpy as np
 
 from mal_planner.initializer.collision import CollisionChecker
-from mal_planner.initializer.planners import OMPL_PREFIX, PlanningFailed
+from mal_planner.initializer.planners import OMPL_PREFIX, PlanningFailed, require_free_endpoints
 from mal_planner.initializer.smoothing import smooth_path
 
 _GEOMETRIC_PLANNERS = (
@@ -77,10 +77,7 @@ class OmplPlanner:
         import ompl.geometric as og
         import ompl.util as ou
 
-        start, goal = np.asarray(start, dtype=float), np.asarray(goal, dtype=float)
-        for label, p in (("start", start), ("goal", goal)):
-            if not checker.point_free(p):
-                raise PlanningFailed(f"{self.spec}: the {label} {np.round(p, 4).tolist()} is not free")
+        start, goal = require_free_endpoints(checker, self.spec, start, goal)
         ou.setLogLevel(ou.LOG_NONE)  # setSeed reports an error once sampling has started; it still reseeds
         ou.RNG.setSeed(int(rng.integers(1, 2**31 - 1)))
 

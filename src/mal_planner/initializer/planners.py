@@ -20,6 +20,16 @@ class PlanningFailed(RuntimeError):
     """No obstacle-free path was found; ``str()`` is one line."""
 
 
+def require_free_endpoints(checker: CollisionChecker, spec: str, start: np.ndarray, goal: np.ndarray
+                           ) -> tuple[np.ndarray, np.ndarray]:
+    """Both ends as float arrays; :class:`PlanningFailed` naming the planner if one is not free."""
+    start, goal = np.asarray(start, dtype=float), np.asarray(goal, dtype=float)
+    for label, p in (("start", start), ("goal", goal)):
+        if not checker.point_free(p):
+            raise PlanningFailed(f"{spec}: the {label} {np.round(p, 4).tolist()} is not free")
+    return start, goal
+
+
 @runtime_checkable
 class PathPlanner(Protocol):
     """Plans a free polyline (K, 3): first row = start, last row = goal."""

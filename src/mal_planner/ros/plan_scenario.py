@@ -18,8 +18,8 @@ from mal_planner.units import m_to_nm
 DEFAULT_MODEL = "point_mass"
 AIRSPACE_TOL_NM = 0.05
 """Extrapolated states this far outside the airspace are clipped back in; further out they are left out."""
-MIN_TIME_FACTOR = 1.05
-"""Fixed landing times shorter than this factor x (straight distance / speed) are given up (sequencer)."""
+MIN_TIME_FACTOR = 1.0
+"""Fixed landing times shorter than this factor x (straight distance / speed) cannot be met: given up."""
 
 
 class NoFlyZoneError(ValueError):
