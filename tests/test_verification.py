@@ -104,3 +104,19 @@ def test_verification_is_independent_of_the_transcription() -> None:
     modules = {node.module for node in ast.walk(tree) if isinstance(node, ast.ImportFrom)}
     modules |= {alias.name for node in ast.walk(tree) if isinstance(node, ast.Import) for alias in node.names}
     assert not any(m and ("ocp" in m or "landing" in m or "casadi" in m) for m in modules), modules
+
+
+def test_reasons_are_attributed_to_their_aircraft(thesis) -> None:
+    a = np.array([-1.0, 5.0, 0.2])
+    b = np.array([1.0, 5.1, 0.2])
+    c = np.array([0.0, 3.5, 0.15])
+    sc = thesis.with_initial_states({"A1": np.array([*a, 0.0, 0.0]), "A2": np.array([*b, 0.0, math.pi]),
+                                     "A3": np.array([*c, 0.0, -math.pi / 2])})
+    report = verify(sc, [straight_level("A1", a, 0.0, 30.0), straight_level("A2", b, math.pi, 30.0),
+                         straight_level("A3", c, -math.pi / 2, 30.0, controls=(1.2, 1.0))])
+    assert any("A1-A2" in r for r in report.by_aircraft["A1"])
+    assert any("A1-A2" in r for r in report.by_aircraft["A2"])
+    assert not any("A1-A2" in r for r in report.by_aircraft["A3"])
+    assert any("bank angle" in r for r in report.by_aircraft["A3"])
+    assert not any("bank angle" in r for r in report.by_aircraft["A1"])
+    assert not report.aircraft_verified("A3")

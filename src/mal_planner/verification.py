@@ -38,8 +38,10 @@ class Tolerances:
     obstacle_rel: float = 1e-5
     """Obstacles are shrunk by this fraction of their semi-axes (a trajectory riding an active obstacle
     constraint dips in between collocation points by ~1e-6 of the size)."""
-    angle: float = math.radians(0.1)
-    """Slack on gate and runway attitudes and on the bank-angle limit."""
+    attitude: float = math.radians(0.5)
+    """Slack on the flown gate and runway attitudes (the flown path drifts from the plan a little)."""
+    bank: float = math.radians(0.1)
+    """Slack on the bank-angle limit of the commanded controls."""
     landing_time_s: float = 1e-3
     rtol: float = 1e-9
     atol: float = 1e-11
@@ -77,6 +79,11 @@ class VerificationReport:
     aircraft: list[AircraftCheck]
     pairs: list[PairCheck]
     tolerances: Tolerances
+    by_aircraft: dict[str, list[str]] = field(default_factory=dict)
+    """The reasons that concern each aircraft (a separation failure concerns both)."""
+
+    def aircraft_verified(self, callsign: str) -> bool:
+        return not self.by_aircraft.get(callsign)
 
     def to_dict(self) -> dict:
         return asdict(self)
@@ -156,6 +163,13 @@ def verify(scenario: Scenario, trajectories: list[Trajectory], tol: Tolerances |
     """
     tol = tol or Tolerances()
     reasons: list[str] = []
+    by_aircraft: dict[str, list[str]] = {t.callsign: [] for t in trajectories}
+
+    def fail(callsigns: tuple[str, ...], text: str) -> None:
+        reasons.append(text)
+        for callsign in callsigns:
+            by_aircraft.setdefault(callsign, []).append(text)
+
     checks: list[AircraftCheck] = []
     flown: dict[str, tuple[np.ndarray, np.ndarray]] = {}
     for traj in trajectories:
@@ -169,15 +183,15 @@ def verify(scenario: Scenario, trajectories: list[Trajectory], tol: Tolerances |
         pos_dev = float(np.max(np.linalg.norm(solved[:, :3] - x[:, :3], axis=1)))
         ang_dev = float(np.max(np.abs(np.remainder(solved[:, 3:] - x[:, 3:] + np.pi, 2 * np.pi) - np.pi)))
         if pos_dev > tol.deviation_nm:
-            reasons.append(f"{cs}: re-integrated path deviates {pos_dev:.4g} nm from the plan")
+            fail((cs,), f"{cs}: re-integrated path deviates {pos_dev:.4g} nm from the plan")
         if ang_dev > tol.deviation_angle:
-            reasons.append(f"{cs}: re-integrated angles deviate {math.degrees(ang_dev):.3g} deg from the plan")
+            fail((cs,), f"{cs}: re-integrated angles deviate {math.degrees(ang_dev):.3g} deg from the plan")
         # Airspace.
         below = scenario.airspace[:, 0] - x[:, :3]
         above = x[:, :3] - scenario.airspace[:, 1]
         violation = float(max(np.max(below), np.max(above), 0.0))
         if violation > tol.airspace_nm:
-            reasons.append(f"{cs}: leaves the airspace by {violation:.4g} nm")
+            fail((cs,), f"{cs}: leaves the airspace by {violation:.4g} nm")
         # Obstacles: exact containment of every sample and of every segment between samples.
         hits, hit_times = [], []
         for ob in scenario.obstacles:
@@ -187,34 +201,34 @@ def verify(scenario: Scenario, trajectories: list[Trajectory], tol: Tolerances |
             if np.any(inside):
                 hits.append(ob.name)
                 hit_times += t[inside].tolist()
-                reasons.append(f"{cs}: enters obstacle {ob.name!r} at t={t[inside][0]:.2f} s")
+                fail((cs,), f"{cs}: enters obstacle {ob.name!r} at t={t[inside][0]:.2f} s")
         # Gates: every plane crossing must be in the hole, in the right direction, with the set attitude.
         events = []
         for gate in scenario.gates:
             crossings = _gate_crossings(gate, t, x)
             if not crossings and gate.signed_distance(aircraft.state0[:3]) > 0:
-                reasons.append(f"{cs}: never passes gate {gate.name!r}")
+                fail((cs,), f"{cs}: never passes gate {gate.name!r}")
             for ev in crossings:
                 ev["gamma_error"] = _angle_error(ev["gamma"], gate.flight_path_angle)
                 ev["heading_error"] = _angle_error(ev["heading"], gate.heading)
                 if not gate.in_hole(np.array(ev["position"]), tol.position_nm):
-                    reasons.append(f"{cs}: crosses the plane of {gate.name!r} outside the hole at "
+                    fail((cs,), f"{cs}: crosses the plane of {gate.name!r} outside the hole at "
                                    f"{np.round(ev['position'], 4).tolist()}")
                 if not ev["direction_ok"]:
-                    reasons.append(f"{cs}: crosses {gate.name!r} backwards at t={ev['time_s']:.2f} s")
-                if ev["gamma_error"] > tol.angle or ev["heading_error"] > tol.angle:
+                    fail((cs,), f"{cs}: crosses {gate.name!r} backwards at t={ev['time_s']:.2f} s")
+                if ev["gamma_error"] > tol.attitude or ev["heading_error"] > tol.attitude:
                     g_err, h_err = math.degrees(ev["gamma_error"]), math.degrees(ev["heading_error"])
-                    reasons.append(f"{cs}: attitude at {gate.name!r} off by {g_err:.3g} / {h_err:.3g} deg")
+                    fail((cs,), f"{cs}: attitude at {gate.name!r} off by {g_err:.3g} / {h_err:.3g} deg")
             events.extend(crossings)
         # Bank angle and load factors (on the plan's samples: the controls are what the plan commands).
         n_h, n_v = traj.controls[:, 0], traj.controls[:, 1]
         bank = np.degrees(np.arctan2(n_h, n_v))
-        limit = math.degrees(aircraft.limits.bank_angle_max + tol.angle)
+        limit = math.degrees(aircraft.limits.bank_angle_max + tol.bank)
         if np.any(np.abs(bank) > limit):
-            reasons.append(f"{cs}: bank angle reaches {np.max(np.abs(bank)):.2f} deg (limit "
+            fail((cs,), f"{cs}: bank angle reaches {np.max(np.abs(bank)):.2f} deg (limit "
                            f"{math.degrees(aircraft.limits.bank_angle_max):.1f})")
         if np.min(n_v) < -1e-9:
-            reasons.append(f"{cs}: negative vertical load factor {np.min(n_v):.3g}")
+            fail((cs,), f"{cs}: negative vertical load factor {np.min(n_v):.3g}")
         # Runway.
         final = x[-1]
         rw = scenario.runway_state
@@ -224,27 +238,28 @@ def verify(scenario: Scenario, trajectories: list[Trajectory], tol: Tolerances |
             "heading_error": _angle_error(final[4], rw[4]),
         }
         if runway["position_error_nm"] > tol.position_nm + tol.deviation_nm:
-            reasons.append(f"{cs}: ends {runway['position_error_nm']:.4g} nm from the runway")
-        if runway["gamma_error"] > tol.angle or runway["heading_error"] > tol.angle:
-            reasons.append(f"{cs}: runway attitude off by {math.degrees(runway['gamma_error']):.3g} / "
+            fail((cs,), f"{cs}: ends {runway['position_error_nm']:.4g} nm from the runway")
+        if runway["gamma_error"] > tol.attitude or runway["heading_error"] > tol.attitude:
+            fail((cs,), f"{cs}: runway attitude off by {math.degrees(runway['gamma_error']):.3g} / "
                            f"{math.degrees(runway['heading_error']):.3g} deg")
         if landing_times is not None and cs in landing_times and \
                 abs(t[-1] - landing_times[cs]) > tol.landing_time_s:
-            reasons.append(f"{cs}: lands at {t[-1]:.3f} s, not the fixed {landing_times[cs]:.3f} s")
+            fail((cs,), f"{cs}: lands at {t[-1]:.3f} s, not the fixed {landing_times[cs]:.3f} s")
         checks.append(AircraftCheck(cs, float(t[-1]), pos_dev, ang_dev, float(np.min(bank)), float(np.max(bank)),
                                     float(np.min(n_v)), violation, hits, hit_times, events, runway))
     # Landing-time spacing in landing order.
     order = sorted(checks, key=lambda c: c.landing_time)
     for a, b in itertools.pairwise(order):
         if b.landing_time - a.landing_time < scenario.landing_spacing_s - tol.landing_time_s:
-            reasons.append(f"{a.callsign}->{b.callsign}: landings {b.landing_time - a.landing_time:.2f} s apart "
-                           f"(minimum {scenario.landing_spacing_s:.1f} s)")
-    pairs = _separation(flown, scenario, tol, reasons)
-    return VerificationReport(not reasons, reasons, checks, pairs, tol)
+            gap = b.landing_time - a.landing_time
+            fail((a.callsign, b.callsign), f"{a.callsign}->{b.callsign}: landings {gap:.2f} s apart "
+                                           f"(minimum {scenario.landing_spacing_s:.1f} s)")
+    pairs = _separation(flown, scenario, tol, fail)
+    return VerificationReport(not reasons, reasons, checks, pairs, tol, by_aircraft)
 
 
 def _separation(flown: dict[str, tuple[np.ndarray, np.ndarray]], scenario: Scenario, tol: Tolerances,
-                reasons: list[str]) -> list[PairCheck]:
+                fail) -> list[PairCheck]:
     """Minimum distance of every pair while both are airborne, on a common dense grid."""
     pairs = []
     for (a, (ta, xa)), (b, (tb, xb)) in itertools.combinations(flown.items(), 2):
@@ -261,6 +276,6 @@ def _separation(flown: dict[str, tuple[np.ndarray, np.ndarray]], scenario: Scena
         local_min = np.r_[True, dist[1:] <= dist[:-1]] & np.r_[dist[:-1] <= dist[1:], True]
         pairs.append(PairCheck(f"{a}-{b}", float(dist[k]), float(grid[k]), grid[low & local_min].tolist()))
         if dist[k] < scenario.separation_nm - tol.separation_nm:
-            reasons.append(f"{a}-{b}: {dist[k]:.4f} nm apart at t={grid[k]:.2f} s "
+            fail((a, b), f"{a}-{b}: {dist[k]:.4f} nm apart at t={grid[k]:.2f} s "
                            f"(minimum {scenario.separation_nm} nm)")
     return pairs

@@ -15,7 +15,6 @@ import json
 import logging
 import math
 import os
-import re
 import signal
 import sys
 import threading
@@ -95,13 +94,7 @@ def _aircraft_verified(result: PlanResult, callsign: str) -> bool:
     rep = result.verification
     if rep is None:
         return False
-    if rep.verified:
-        return True
-    for reason in rep.reasons:
-        head = reason.split(":", 1)[0]
-        if callsign in re.split(r"[^A-Za-z0-9_]+", head):
-            return False
-    return True
+    return rep.aircraft_verified(callsign)
 
 
 class PlannerNode:
