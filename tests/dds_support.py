@@ -18,21 +18,7 @@ SRC = Path(__file__).resolve().parents[1] / "src"
 if str(SRC) not in sys.path:  # run from a source checkout without installing
     sys.path.insert(0, str(SRC))
 
-LOOPBACK_XML = """<?xml version="1.0" encoding="UTF-8"?>
-<CycloneDDS xmlns="https://cdds.io/config">
-  <Domain Id="any">
-    <General>
-      <Interfaces><NetworkInterface address="127.0.0.1"/></Interfaces>
-      <AllowMulticast>false</AllowMulticast>
-    </General>
-    <Discovery>
-      <ParticipantIndex>auto</ParticipantIndex>
-      <MaxAutoParticipantIndex>40</MaxAutoParticipantIndex>
-      <Peers><Peer address="127.0.0.1"/></Peers>
-    </Discovery>
-  </Domain>
-</CycloneDDS>
-"""
+from mal_planner.ros.transport.loopback import write_loopback_config  # noqa: E402
 
 _counter = itertools.count()
 
@@ -45,9 +31,7 @@ def unique_domain_id() -> int:
 @pytest.fixture
 def dds_env(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> dict[str, str]:
     """Loopback-only Cyclone config and a fresh ROS_DOMAIN_ID for this test; returns the env for children."""
-    cfg = tmp_path / "cyclonedds.xml"
-    cfg.write_text(LOOPBACK_XML, encoding="utf-8")
-    monkeypatch.setenv("CYCLONEDDS_URI", cfg.as_uri())
+    monkeypatch.setenv("CYCLONEDDS_URI", write_loopback_config(tmp_path / "cyclonedds.xml"))
     monkeypatch.setenv("ROS_DOMAIN_ID", str(unique_domain_id()))
     monkeypatch.setenv("MAL_ROS_BACKEND", "cyclone")
     env = dict(os.environ)

@@ -30,23 +30,10 @@ from collections.abc import Sequence
 from pathlib import Path
 from typing import Any, TextIO
 
+from mal_planner.ros.transport.loopback import write_loopback_config
+
 REPO = Path(__file__).resolve().parents[3]
 STATUS_FILE = "planner_status.json"
-LOOPBACK_XML = """<?xml version="1.0" encoding="UTF-8"?>
-<CycloneDDS xmlns="https://cdds.io/config">
-  <Domain Id="any">
-    <General>
-      <Interfaces><NetworkInterface address="127.0.0.1"/></Interfaces>
-      <AllowMulticast>false</AllowMulticast>
-    </General>
-    <Discovery>
-      <ParticipantIndex>auto</ParticipantIndex>
-      <MaxAutoParticipantIndex>40</MaxAutoParticipantIndex>
-      <Peers><Peer address="127.0.0.1"/></Peers>
-    </Discovery>
-  </Domain>
-</CycloneDDS>
-"""
 READY = {"recorder": "record: recording", "planner": "planner ready"}
 STOP_TIMEOUT_S = 15.0
 
@@ -129,9 +116,7 @@ def child_env(out: Path) -> dict[str, str]:
     """Environment of the children: loopback-only Cyclone DDS unless the user set CYCLONEDDS_URI."""
     env = dict(os.environ)
     if not env.get("CYCLONEDDS_URI"):
-        cfg = out / "cyclonedds.xml"
-        cfg.write_text(LOOPBACK_XML, encoding="utf-8")
-        env["CYCLONEDDS_URI"] = cfg.resolve().as_uri()
+        env["CYCLONEDDS_URI"] = write_loopback_config(out / "cyclonedds.xml")
     src = str(REPO / "src")
     if (REPO / "src" / "mal_planner").is_dir():
         env["PYTHONPATH"] = os.pathsep.join(filter(None, [src, env.get("PYTHONPATH", "")]))
