@@ -132,8 +132,8 @@ class Sequencer:
     runs_per_aircraft: int = 3
     lattice_resolution: float = 0.01
     max_waypoint_draws: int = 20000
-    max_waypoint_plans: int = 150
-    """Candidates planned (two planner runs each) before settling for the one closest to the window."""
+    max_waypoint_plans: int = 400
+    """Planner runs (two per full candidate) before settling for the candidate closest to the window."""
     checker_margin: float = 0.0
     gate_band: float = 0.01
     gate_margin: float = 0.005
@@ -231,15 +231,16 @@ class Sequencer:
             if not checker.point_free(wp):
                 continue
             try:
+                planned += 1
                 leg1 = self._planner.plan(checker, start, wp, rng)
                 leg1_len = path_length(leg1)
-                if leg1_len + d2 > hi_len:
+                too_long = leg1_len + d2 - hi_len  # a lower bound of how far past the window it lands
+                if too_long > 0.0 and best is not None and too_long >= best[0]:
                     continue
+                planned += 1
                 leg2 = self._planner.plan(checker, wp, goal, rng)
             except PlanningFailed:
                 continue
-            finally:
-                planned += 1
             total = leg1_len + path_length(leg2)
             if lo_len <= total <= hi_len and leg1_len > 0.5 * total:
                 log.debug("%s: waypoint after %d draws, %d planned", ac.callsign, len(tried), planned)
@@ -248,7 +249,7 @@ class Sequencer:
             if leg1_len > 0.5 * total and (best is None or miss < best[0]):
                 best = (miss, np.vstack([leg1, leg2]), wp)
         if best is not None:
-            log.warning("%s: no waypoint met the landing spacing within %d planned candidates; using the closest "
+            log.warning("%s: no waypoint met the landing spacing within %d planner runs; using the closest "
                         "(%.1f s off the window)", ac.callsign, planned, best[0] / v)
             return remove_repeats(best[1]), best[2]
         raise PlanningFailed(

@@ -164,18 +164,13 @@ class LandingOptimizer:
         self.solver = OCPSolver(self.problem.problem, OCPOptions(
             tol=options.nlp_tol, max_iter=options.max_nlp_iterations, refine=options.refine,
             mesh_tol=options.mesh_tol, n_min=options.n_min, n_max=options.n_max,
-            max_mesh_iterations=options.max_mesh_iterations, ipopt=dict(options.ipopt), callback=self._report))
+            max_mesh_iterations=options.max_mesh_iterations, ipopt=dict(options.ipopt)))
         self.setup_time = time.perf_counter() - t0
 
     def accepts(self, scenario: Scenario, guesses: list[AircraftGuess]) -> bool:
         """True if the cached NLP fits (same aircraft, obstacles, gates and event order)."""
         return (scenario.obstacles == self.scenario.obstacles and scenario.gates == self.scenario.gates
                 and layout_for(scenario, guesses).signature() == self.layout.signature())
-
-    @staticmethod
-    def _report(it: MeshIteration) -> None:
-        log.info("mesh iteration %d: segments %s, max error %.2e, %d NLP iterations, %.2f s NLP, %s",
-                 it.iteration, list(it.segments), it.max_error, it.nlp_iterations, it.nlp_time, it.status)
 
     def solve(self, scenario: Scenario | None = None, warm: LandingResult | None = None,
               guesses: list[AircraftGuess] | None = None) -> LandingResult:
