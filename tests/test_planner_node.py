@@ -264,8 +264,10 @@ def test_restart_in_the_middle_of_a_replay(snippet, tmp_path: Path) -> None:  # 
     params = params_file(tmp_path)
     first = start_planner(snippet, params)
     wait_for(first, "planner ready", 30)
+    started = time.monotonic()
     start_replay(snippet, 0.5)  # 40 s of wall time
     wait_for(first, "plan #1", 150)
+    time.sleep(max(0.0, 14.0 - (time.monotonic() - started)))  # at least 7 s into the bag
     first.proc.kill()
     first.proc.wait()
     second = start_planner(snippet, params)

@@ -56,8 +56,8 @@ class Superquadric:
         """True where the segment start->end (rows, shape (K, 3)) enters the obstacle.
 
         The superquadric lies in its bounding box, so each segment is first clipped to the box (slab
-        method); along the clipped part F(t) = sum |r_i(t)|^p is convex, and a ternary search finds its
-        minimum to 1e-9 of the segment length. Exact for any wall thickness, unlike fixed-step sampling.
+        method); along the clipped part F(t) = sum |r_i(t)|^p is convex, and a golden-section search finds
+        its minimum to 2e-6 of the clipped length. Exact for any wall thickness, unlike fixed-step sampling.
         """
         r0 = np.atleast_2d(self._normalized(starts)) / (1.0 + margin)
         r1 = np.atleast_2d(self._normalized(ends)) / (1.0 + margin)
@@ -80,13 +80,22 @@ class Superquadric:
         def f(t: np.ndarray) -> np.ndarray:
             return np.sum(np.abs(p0 + t[:, None] * dd) ** self.p, axis=1)
 
-        for _ in range(60):  # (2/3)^60 ~ 3e-11 of the clipped interval
-            m1 = a + (b - a) / 3.0
-            m2 = b - (b - a) / 3.0
-            left = f(m1) < f(m2)
-            b = np.where(left, m2, b)
-            a = np.where(left, a, m1)
-        hits[idx] = f(0.5 * (a + b)) < 1.0
+        # Golden-section search for the minimum of the convex F on [a, b]: 0.618^27 ~ 2e-6 of the clipped
+        # interval, where F is flat (its error is ~ the square of that); any evaluation below 1 is a hit.
+        ratio = (np.sqrt(5.0) - 1.0) / 2.0
+        c, d = b - ratio * (b - a), a + ratio * (b - a)
+        fc, fd = f(c), f(d)
+        hit = (fc < 1.0) | (fd < 1.0)
+        for _ in range(25):
+            left = fc < fd  # the minimum lies in [a, d]: drop (d, b]
+            b = np.where(left, d, b)
+            a = np.where(left, a, c)
+            x_new = np.where(left, b - ratio * (b - a), a + ratio * (b - a))
+            f_new = f(x_new)
+            hit |= f_new < 1.0
+            c, d = np.where(left, x_new, d), np.where(left, c, x_new)
+            fc, fd = np.where(left, f_new, fd), np.where(left, fc, f_new)
+        hits[idx] = hit
         return hits
 
     def bounding_box(self) -> np.ndarray:

@@ -50,13 +50,15 @@ def _wrap_near(target: float, reference: float) -> float:
 def build_landing_problem(scenario: Scenario, layout: PhaseLayout, guesses: list[AircraftGuess],
                           fixed_landing_times: bool = True, mesh: PhaseMesh | None = None,
                           horizon: float | None = None, gate_margin: float = 0.002,
-                          clearance: float = 1e-4) -> LandingProblem:
+                          clearance: float = 1e-4, segment_seconds: float | None = None) -> LandingProblem:
     """Assemble the OCP; ``guesses`` are in landing order and place each phase's initial guess.
 
     ``gate_margin`` (nm) shrinks the hole for the gate event: the event sits on the wall's exit face, and
     passing exactly at the hole's edge would graze the rounded p-norm pieces inside the wall's thickness.
     ``clearance`` is the lower bound of ln ||r||_p at the collocation points (1e-4: obstacles inflated by
     0.01%), so that an active obstacle constraint does not dip into the obstacle between the points.
+    ``segment_seconds`` scales the initial mesh to the guessed phase durations: about one segment per that
+    many seconds, at most ``mesh``'s segment count (None: ``mesh`` for every phase).
     """
     n = len(layout.callsigns)
     aircraft = [scenario.aircraft_by_callsign(cs) for cs in layout.callsigns]
@@ -69,8 +71,11 @@ def build_landing_problem(scenario: Scenario, layout: PhaseLayout, guesses: list
     for k in range(layout.n_phases):
         who = layout.airborne(k)
         members.append(who)
-        phases.append(_phase(k, who, scenario, layout, aircraft, guesses, gate, mesh, horizon,
-                             (event_times[k - 1] if k else 0.0, event_times[k]), gate_margin, clearance))
+        span = (event_times[k - 1] if k else 0.0, event_times[k])
+        phase_mesh = mesh if segment_seconds is None else PhaseMesh.uniform(
+            int(np.clip(round((span[1] - span[0]) / segment_seconds), 1, mesh.n_segments)), max(mesh.degrees))
+        phases.append(_phase(k, who, scenario, layout, aircraft, guesses, gate, phase_mesh, horizon, span,
+                             gate_margin, clearance))
     n_states = len(STATE_NAMES)
 
     def index_of(k: int, i: int) -> int:
