@@ -44,8 +44,8 @@ def main() -> None:
     cases = {
         "initializer guess, hp to 1e-6": LandingOptions(),
         "straight-line guess, hp to 1e-6": LandingOptions(guess="straight"),
-        "initializer guess, fixed 4x6 mesh": LandingOptions(refine=False),
-        "straight-line guess, fixed 4x6 mesh": LandingOptions(guess="straight", refine=False),
+        "initializer guess, initial mesh only": LandingOptions(refine=False),
+        "straight-line guess, initial mesh only": LandingOptions(guess="straight", refine=False),
     }
     rows = {}
     for name, landing in cases.items():
