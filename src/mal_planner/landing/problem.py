@@ -22,8 +22,9 @@ import numpy as np
 from mal_planner.dynamics import STATE_NAMES, bank_limit_residuals
 from mal_planner.landing.guess import AircraftGuess
 from mal_planner.landing.layout import PhaseLayout
+from mal_planner.obstacles import Gate
 from mal_planner.ocp import Phase, PhaseGuess, PhaseMesh, Problem
-from mal_planner.scenario import Scenario
+from mal_planner.scenario import Aircraft, Scenario
 
 GAMMA_BOUND = math.radians(30.0)
 HEADING_BOUND = 4.0 * math.pi
@@ -66,6 +67,7 @@ def build_landing_problem(scenario: Scenario, layout: PhaseLayout, guesses: list
     horizon = horizon or 2.0 * max(g.landing_time for g in guesses) + 60.0
     mesh = mesh or PhaseMesh.uniform(4, 6)
     event_times = [ev.time_guess for ev in layout.events]
+    ctx = _Context(scenario, layout, aircraft, guesses, gate, horizon, gate_margin, clearance)
     phases: list[Phase] = []
     members: list[list[int]] = []
     for k in range(layout.n_phases):
@@ -74,8 +76,7 @@ def build_landing_problem(scenario: Scenario, layout: PhaseLayout, guesses: list
         span = (event_times[k - 1] if k else 0.0, event_times[k])
         phase_mesh = mesh if segment_seconds is None else PhaseMesh.uniform(
             int(np.clip(round((span[1] - span[0]) / segment_seconds), 1, mesh.n_segments)), max(mesh.degrees))
-        phases.append(_phase(k, who, scenario, layout, aircraft, guesses, gate, phase_mesh, horizon, span,
-                             gate_margin, clearance))
+        phases.append(_phase(ctx, k, who, phase_mesh, span))
     n_states = len(STATE_NAMES)
 
     def index_of(k: int, i: int) -> int:
@@ -120,8 +121,25 @@ def build_landing_problem(scenario: Scenario, layout: PhaseLayout, guesses: list
     return LandingProblem(problem, layout, n, fixed_landing_times)
 
 
-def _phase(k, who, scenario, layout, aircraft, guesses, gate, mesh, horizon, guess_span, gate_margin,
-           clearance) -> Phase:
+@dataclass(frozen=True)
+class _Context:
+    """What every phase of one landing problem is built from."""
+
+    scenario: Scenario
+    layout: PhaseLayout
+    aircraft: list[Aircraft]
+    """In landing order."""
+    guesses: list[AircraftGuess]
+    gate: Gate | None
+    horizon: float
+    gate_margin: float
+    clearance: float
+
+
+def _phase(ctx: _Context, k: int, who: list[int], mesh: PhaseMesh, guess_span: tuple[float, float]) -> Phase:
+    """Phase ``k`` with the aircraft ``who`` (landing-order indices) airborne in it."""
+    scenario, layout, aircraft, guesses, gate = ctx.scenario, ctx.layout, ctx.aircraft, ctx.guesses, ctx.gate
+    horizon, gate_margin, clearance = ctx.horizon, ctx.gate_margin, ctx.clearance
     states, controls = [], []
     x_lb, x_ub, u_lb, u_ub = [], [], [], []
     xf_lb, xf_ub = [], []
@@ -220,7 +238,7 @@ def _phase(k, who, scenario, layout, aircraft, guesses, gate, mesh, horizon, gue
     )
 
 
-def phase_guess(who: list[int], aircraft: list, guesses: list[AircraftGuess], span: tuple[float, float],
+def phase_guess(who: list[int], aircraft: list[Aircraft], guesses: list[AircraftGuess], span: tuple[float, float],
                 samples: int = 25) -> PhaseGuess:
     """The stacked guess of the aircraft ``who`` over the phase's guessed time span."""
     t = np.linspace(span[0], span[1], samples)
@@ -237,7 +255,7 @@ def phase_guesses(scenario: Scenario, layout: PhaseLayout, guesses: list[Aircraf
             for k in range(layout.n_phases)]
 
 
-def _clip_controls(guess: AircraftGuess, ac, t: np.ndarray) -> np.ndarray:
+def _clip_controls(guess: AircraftGuess, ac: Aircraft, t: np.ndarray) -> np.ndarray:
     u_all = guess.controls(ac.dynamics.gravity, ac.speed)
     u = np.column_stack([np.interp(t, guess.t, u_all[:, k]) for k in range(2)])
     u[:, 1] = np.clip(u[:, 1], max(ac.limits.n_v[0], 1e-3), ac.limits.n_v[1])
