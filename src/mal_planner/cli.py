@@ -76,6 +76,8 @@ def main(argv: list[str] | None = None) -> int:
           f"{', figures' if not args.no_figures else ''})")
     if result.landing is not None and not result.optimized:
         return 1
+    if result.verification is not None and not result.verification.verified:
+        return 3
     return 0
 
 
