@@ -31,7 +31,11 @@ def array_module(*values: Any):
 
 
 def _stack(xp, rows: list) -> Any:
-    return ca.vertcat(*rows) if xp is ca else np.stack(rows)
+    if xp is ca:
+        return ca.vertcat(*rows)
+    if all(np.ndim(r) == 0 for r in rows):  # one state (e.g. inside an ODE solver): the cheap path
+        return np.array(rows, dtype=float)
+    return np.stack(rows)
 
 
 @dataclass(frozen=True)
