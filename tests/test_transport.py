@@ -248,3 +248,39 @@ def test_name_resolution() -> None:
     assert resolve_name("chatter", "", "n") == "/chatter"
     with pytest.raises(ValueError):
         resolve_name("bad name", "", "n")
+
+
+REENTRANT_SERVER = """
+import threading
+from mal_planner.ros.transport import create_node
+node = create_node("waiter", backend="cyclone")
+released = threading.Event()
+node.create_subscription("std_msgs/msg/String", "release", lambda msg: released.set(), 10)
+def handle(request, response):
+    # Blocks until a message arrives on a topic of the SAME node: only possible if the service does not
+    # hold the node's executor.
+    response.success = released.wait(10.0)
+    response.message = "released" if response.success else "timed out"
+    return response
+node.create_service("std_srvs/srv/Trigger", "wait", handle, reentrant=True)
+print("ready", flush=True)
+node.spin()
+"""
+
+
+def test_reentrant_service_does_not_block_the_node(snippet) -> None:  # noqa: F811
+    snippet(REENTRANT_SERVER).wait_for_line("ready")
+    with create_node("releaser", backend="cyclone") as node:
+        srv = node.types.srv("std_srvs/srv/Trigger")
+        client = node.create_client(srv, "wait")
+        pub = node.create_publisher("std_msgs/msg/String", "release", 10)
+        assert client.wait_for_service(10.0)
+        future = client.call_async(srv.Request())
+        node.spin_until_future_complete(future, 1.0)
+        assert not future.done()  # the service is waiting for the release message
+        deadline = time.monotonic() + 10.0
+        while not future.done() and time.monotonic() < deadline:
+            pub.publish(node.types.msg("std_msgs/msg/String")(data="go"))
+            node.spin_until_future_complete(future, 0.2)
+        response = future.result(timeout=0)
+        assert response.success and response.message == "released"

@@ -2,10 +2,10 @@
 
     python -m mal_planner.ros.planner_node --scenario scenarios/thesis.yaml --params config/planner.params.yaml
 
-Threads: the node "planner" (topics, timer) is spun on the main thread and only converts messages and
-schedules work; plans run on a worker thread (a request while planning is coalesced into one follow-up
-plan); the services live on a second node "planner_services" spun on its own thread, so a service call
-that waits for its plan never blocks the radar callbacks.
+Threads: the node "planner" is spun on the main thread; its topic and timer callbacks only convert
+messages and schedule work; plans run on a worker thread (a request while planning is coalesced into one
+follow-up plan); the services are reentrant (the transport runs them beside the other callbacks), so a
+service call that waits for its plan never blocks the radar callbacks.
 """
 
 from __future__ import annotations
@@ -40,7 +40,6 @@ from mal_planner.trajectory import Trajectory
 from mal_planner.units import METRES_PER_NM
 
 NODE_NAME = "planner"
-SERVICES_NODE_NAME = "planner_services"
 STATE_TYPE = "mal_msgs/msg/AircraftState"
 STATUS_FILE = "planner_status.json"
 TICK_S = 0.2
@@ -98,7 +97,7 @@ def _aircraft_verified(result: PlanResult, callsign: str) -> bool:
 
 
 class PlannerNode:
-    """Owns the two nodes, the track store, the planner and the worker thread."""
+    """Owns the node, the track store, the planner and the worker thread."""
 
     def __init__(self, scenario: Scenario, *, params_file: str | Path | None = None, output_dir: str | None = None,
                  namespace: str = "", backend: str = "auto") -> None:
@@ -106,7 +105,6 @@ class PlannerNode:
         if output_dir is not None:
             overrides["output_dir"] = output_dir
         self.node = create_node(NODE_NAME, namespace, backend=backend, parameter_overrides=overrides)
-        self.srv_node = create_node(SERVICES_NODE_NAME, namespace, backend=backend)
         self.params: NodeParams = declare_parameters(self.node, str(params_file or "defaults"), log)
         self.types = self.node.types
         self.scenario = scenario
@@ -133,7 +131,6 @@ class PlannerNode:
         self._published_paths: set[str] = set()
         self._setup_ros()
         self._worker = threading.Thread(target=self._work, name="planner-worker", daemon=True)
-        self._srv_thread = threading.Thread(target=self._spin_services, name="planner-services", daemon=True)
         log.info("planner ready: scenario %s (%d aircraft known, %d obstacles), %s", scenario.source,
                  len(scenario.aircraft), len(scenario.obstacles), describe(self.params))
 
@@ -150,8 +147,9 @@ class PlannerNode:
                                  self.radar_qos)
         node.create_subscription("mal_msgs/msg/NoFlyZone", "airspace/no_fly_zones", self._on_no_fly_zone, QOS_DEFAULT)
         node.create_timer(TICK_S, self._tick)
-        self.srv_node.create_service("std_srvs/srv/Trigger", "plan", self._srv_trigger)
-        self.srv_node.create_service("mal_msgs/srv/PlanLanding", "plan_landing", self._srv_plan_landing)
+        # Reentrant: a service call waits for its plan without holding up the radar callbacks.
+        node.create_service("std_srvs/srv/Trigger", "plan", self._srv_trigger, reentrant=True)
+        node.create_service("mal_msgs/srv/PlanLanding", "plan_landing", self._srv_plan_landing, reentrant=True)
         self._publish_markers([], 0.0)
 
     def _ensure_aircraft(self, callsign: str) -> None:
@@ -483,7 +481,7 @@ class PlannerNode:
         except OSError as exc:
             log.error("cannot write %s: %s", self.out_dir / STATUS_FILE, exc)
 
-    # -- services (services-node thread; they may block) ---------------------------------------------
+    # -- services (reentrant: on a worker thread of the transport; they may block) --------------------
     def _wait(self, future: Future[PlanOutcome]) -> PlanOutcome:
         try:
             return future.result(timeout=self.params.service_timeout_s)
@@ -531,17 +529,9 @@ class PlannerNode:
         return response
 
     # -- life cycle -------------------------------------------------------------------------------------
-    def _spin_services(self) -> None:
-        try:
-            self.srv_node.spin()
-        except Exception:
-            if not self._stop:
-                log.exception("services executor failed")
-
     def spin(self) -> None:
         """Run until :meth:`stop` (e.g. from a signal handler)."""
         self._worker.start()
-        self._srv_thread.start()
         self._write_status()
         try:
             self.node.spin()
@@ -562,7 +552,6 @@ class PlannerNode:
                 if not fut.done():
                     fut.set_result(PlanOutcome(False, "planner is shutting down"))
         self.node.shutdown()
-        self.srv_node.shutdown()
         self._worker.join(timeout=1.0)
 
 

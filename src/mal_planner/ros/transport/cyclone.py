@@ -11,7 +11,7 @@ import itertools
 import threading
 import time
 from collections.abc import Callable
-from concurrent.futures import Future
+from concurrent.futures import Future, ThreadPoolExecutor
 from pathlib import Path
 from typing import Any
 
@@ -157,10 +157,12 @@ class Service(_ServiceEndpoints):
     """Service server; ``callback(request, response) -> response`` runs on the node's executor."""
 
     def __init__(
-        self, node: CycloneNode, srv: mal_msgs_py.ServiceType, name: str, callback: Callable[..., Any]
+        self, node: CycloneNode, srv: mal_msgs_py.ServiceType, name: str, callback: Callable[..., Any],
+        reentrant: bool = False,
     ):
         super().__init__(node, srv, name, is_service=True)
         self.callback = callback
+        self.reentrant = reentrant
 
     def _client_reader_matched(self, publication_handle: int) -> bool | None:
         """rmw_send_response's check: True/None (send) once the client's reply reader is matched."""
@@ -178,22 +180,28 @@ class Service(_ServiceEndpoints):
 
     def _execute(self, node: CycloneNode) -> None:
         for wire in _take_all(self.reader):
-            body = _fields(wire)
-            guid, seq = body.pop(mal_msgs_py.WIRE_HEADER[0]), body.pop(mal_msgs_py.WIRE_HEADER[1])
-            request = self.srv.Request(**body)
-            response = node._run_callback(self.callback, request, self.srv.Response())
-            if response is None:
-                node.get_logger().error("service %s: callback returned no response", self.service_name)
-                continue
-            deadline = time.monotonic() + 0.1
+            if self.reentrant:  # may block (e.g. wait for a long computation): off the executor thread
+                node._service_pool().submit(self._handle, node, wire)
+            else:
+                self._handle(node, wire)
+
+    def _handle(self, node: CycloneNode, wire: Any) -> None:
+        body = _fields(wire)
+        guid, seq = body.pop(mal_msgs_py.WIRE_HEADER[0]), body.pop(mal_msgs_py.WIRE_HEADER[1])
+        request = self.srv.Request(**body)
+        response = node._run_callback(self.callback, request, self.srv.Response())
+        if response is None:
+            node.get_logger().error("service %s: callback returned no response", self.service_name)
+            return
+        deadline = time.monotonic() + 0.1
+        state = self._client_reader_matched(wire.sample_info.publication_handle)
+        while state is False and time.monotonic() < deadline:
+            time.sleep(0.005)
             state = self._client_reader_matched(wire.sample_info.publication_handle)
-            while state is False and time.monotonic() < deadline:
-                time.sleep(0.005)
-                state = self._client_reader_matched(wire.sample_info.publication_handle)
-            if state is None:
-                continue
-            header = dict(zip(mal_msgs_py.WIRE_HEADER, (guid, seq), strict=True))
-            self.writer.write(self.srv.WireResponse(**header, **_fields(response)))
+        if state is None or node._destroyed:
+            return
+        header = dict(zip(mal_msgs_py.WIRE_HEADER, (guid, seq), strict=True))
+        self.writer.write(self.srv.WireResponse(**header, **_fields(response)))
 
 
 def _user_data(endpoint: Any) -> bytes | None:
@@ -325,6 +333,7 @@ class CycloneNode:
         self._executables: list[Subscription | Service | Client] = []
         self._publishers: list[Publisher] = []
         self._timers: list[Timer] = []
+        self._reentrant_pool: ThreadPoolExecutor | None = None
         self._destroyed = False
         self._finalized = False
         self.context.add_node(self._entities)
@@ -394,9 +403,12 @@ class CycloneNode:
         return sub
 
     def create_service(
-        self, srv_type: str | mal_msgs_py.ServiceType, name: str, callback: Callable[[Any, Any], Any]
+        self, srv_type: str | mal_msgs_py.ServiceType, name: str, callback: Callable[[Any, Any], Any],
+        reentrant: bool = False,
     ) -> Service:
-        srv = Service(self, self._srv(srv_type), self.resolve(name), callback)
+        """A service server. ``reentrant`` callbacks run on a worker thread of their own and may block
+        (e.g. wait for a result computed elsewhere) without holding up the node's other callbacks."""
+        srv = Service(self, self._srv(srv_type), self.resolve(name), callback, reentrant)
         self._add_executable(srv, readers=[srv.reader_gid], writers=[srv.writer_gid])
         return srv
 
@@ -447,6 +459,12 @@ class CycloneNode:
     # -- executor ------------------------------------------------------------------------------------
     def _wake(self) -> None:
         self._guard.set(True)
+
+    def _service_pool(self) -> ThreadPoolExecutor:
+        with self._lock:
+            if self._reentrant_pool is None:
+                self._reentrant_pool = ThreadPoolExecutor(max_workers=4, thread_name_prefix=f"{self._name}-srv")
+            return self._reentrant_pool
 
     def _run_callback(self, fn: Callable[..., Any], *args: Any) -> Any:
         try:
@@ -538,6 +556,10 @@ class CycloneNode:
             if self._finalized:
                 return
             self._finalized = True
+            pool, self._reentrant_pool = self._reentrant_pool, None
+        if pool is not None:
+            pool.shutdown(wait=False, cancel_futures=True)
+        with self._lock:
             ents, self._executables = self._executables, []
             pubs, self._publishers = self._publishers, []
             self._timers = []

@@ -1,7 +1,8 @@
 """rclpy backend: a thin adapter giving rclpy nodes the same API as the built-in Cyclone backend.
 
-Only imported when rclpy is importable (a sourced ROS 2 installation). Callbacks run on one
-``SingleThreadedExecutor`` per node, like the built-in backend.
+Only imported when rclpy is importable (a sourced ROS 2 installation). Each node has its own executor;
+its callbacks run one at a time, like the built-in backend, except services created with
+``reentrant=True``, which may block.
 """
 
 from __future__ import annotations
@@ -13,7 +14,8 @@ from pathlib import Path
 from typing import Any
 
 import rclpy
-from rclpy.executors import SingleThreadedExecutor
+from rclpy.callback_groups import ReentrantCallbackGroup
+from rclpy.executors import MultiThreadedExecutor
 from rclpy.parameter import Parameter as RclpyParameter
 from rclpy.qos import DurabilityPolicy, HistoryPolicy, ReliabilityPolicy
 from rclpy.qos import QoSProfile as RclpyQoSProfile
@@ -116,8 +118,11 @@ class RclpyNode:
         )
         self.types = RclpyTypes()
         self._logger = make_logger(name, namespace)
-        self._executor = SingleThreadedExecutor()
+        # Callbacks of the node's default (mutually exclusive) group still run one at a time; only the
+        # services created with reentrant=True run beside them on the executor's second thread.
+        self._executor = MultiThreadedExecutor(num_threads=2)
         self._executor.add_node(self.node)
+        self._reentrant_group = ReentrantCallbackGroup()
         self._spin_lock = threading.Lock()
         self._executor_thread: int | None = None
         self._destroyed = False
@@ -165,9 +170,11 @@ class RclpyNode:
     def create_subscription(self, msg_type: str | type, topic: str, callback: Any, qos: Any = None) -> Any:
         return self.node.create_subscription(self._cls(msg_type, "msg"), topic, callback, to_rclpy_qos(qos))
 
-    def create_service(self, srv_type: str | type, name: str, callback: Any) -> Any:
+    def create_service(self, srv_type: str | type, name: str, callback: Any, reentrant: bool = False) -> Any:
         srv = self._cls(srv_type, "srv")
-        return self.node.create_service(srv, name, callback, qos_profile=to_rclpy_qos(QOS_SERVICES))
+        group = self._reentrant_group if reentrant else None
+        return self.node.create_service(srv, name, callback, qos_profile=to_rclpy_qos(QOS_SERVICES),
+                                        callback_group=group)
 
     def create_client(self, srv_type: str | type, name: str) -> RclpyClient:
         return RclpyClient(self, self.node.create_client(self._cls(srv_type, "srv"), name))
