@@ -17,7 +17,7 @@ from scipy.spatial import cKDTree
 
 from mal_planner.initializer.collision import CollisionChecker
 from mal_planner.initializer.planners import PlanningFailed, require_free_endpoints
-from mal_planner.initializer.smoothing import smooth_path
+from mal_planner.initializer.smoothing import SmoothedSearch
 
 
 class _Forest:
@@ -126,7 +126,7 @@ def grid_seeds(checker: CollisionChecker, per_axis: tuple[int, int, int] | int) 
 
 
 @dataclass
-class MultiRRT:
+class MultiRRT(SmoothedSearch):
     """Multiple-tree RRT (Algorithm 3-4). Options:
 
     ``max_trees`` (>= 2, start and goal trees included), ``seeds_per_axis`` (grid seeds, an int or one per
@@ -151,13 +151,6 @@ class MultiRRT:
             raise ValueError("max_iterations must be >= 1 and max_edge > 0")
         self.last_iterations = 0
         self.last_trees = 0
-
-    def plan(
-        self, checker: CollisionChecker, start: np.ndarray, goal: np.ndarray, rng: np.random.Generator
-    ) -> np.ndarray:
-        """Raw tree path from start to goal, smoothed; raises :class:`PlanningFailed`."""
-        raw = self.search(checker, start, goal, rng)
-        return smooth_path(checker, raw, rng, self.smooth_rounds)
 
     def search(
         self, checker: CollisionChecker, start: np.ndarray, goal: np.ndarray, rng: np.random.Generator

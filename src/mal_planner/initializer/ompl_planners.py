@@ -18,7 +18,7 @@ import numpy as np
 
 from mal_planner.initializer.collision import CollisionChecker
 from mal_planner.initializer.planners import OMPL_PREFIX, PlanningFailed, require_free_endpoints
-from mal_planner.initializer.smoothing import smooth_path
+from mal_planner.initializer.smoothing import SmoothedSearch
 
 _GEOMETRIC_PLANNERS = (
     "RRT", "RRTConnect", "RRTstar", "InformedRRTstar", "SORRTstar", "AORRTC", "BITstar", "BFMT", "FMT",
@@ -39,7 +39,7 @@ def available_ompl_planners() -> tuple[str, ...]:
 
 
 @dataclass
-class OmplPlanner:
+class OmplPlanner(SmoothedSearch):
     """An ``ompl.geometric`` planner by name. Options:
 
     ``time_limit`` (s per query); ``max_iterations``: anytime planners such as RRT* run in rounds of this
@@ -62,12 +62,6 @@ class OmplPlanner:
         if self.max_iterations is None:
             self.max_iterations = 1000
         self.last_iterations = 0
-
-    def plan(
-        self, checker: CollisionChecker, start: np.ndarray, goal: np.ndarray, rng: np.random.Generator
-    ) -> np.ndarray:
-        raw = self.search(checker, start, goal, rng)
-        return smooth_path(checker, raw, rng, self.smooth_rounds)
 
     def search(
         self, checker: CollisionChecker, start: np.ndarray, goal: np.ndarray, rng: np.random.Generator

@@ -80,3 +80,18 @@ def smooth_path(
         path = random_shortcut(checker, path, rng, rounds)
         path = greedy_shortcut(checker, path)
     return path
+
+
+class SmoothedSearch:
+    """Mixin for planners: :meth:`plan` = the planner's raw ``search`` path, then shortcut smoothing."""
+
+    smooth_rounds: int
+
+    def search(self, checker: CollisionChecker, start: np.ndarray, goal: np.ndarray,
+               rng: np.random.Generator) -> np.ndarray:
+        raise NotImplementedError
+
+    def plan(self, checker: CollisionChecker, start: np.ndarray, goal: np.ndarray,
+             rng: np.random.Generator) -> np.ndarray:
+        """The raw path from start to goal, smoothed; raises ``PlanningFailed``."""
+        return smooth_path(checker, self.search(checker, start, goal, rng), rng, self.smooth_rounds)
