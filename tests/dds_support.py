@@ -100,3 +100,20 @@ def snippet(dds_env: dict[str, str]):
     yield start
     for snip in started:
         snip.stop()
+
+
+def coarse_params(extra: str = "") -> str:
+    """A planner params file with coarse, fast optimizer settings (for integration tests); ``extra`` lines
+    (indented by four spaces) are appended to ``ros__parameters``."""
+    return (
+        "planner:\n"
+        "  ros__parameters:\n"
+        "    refine: false\n"
+        "    mesh_tol: 1.0e-3\n"
+        "    nlp_tol: 1.0e-6\n"
+        "    segments: 4\n"
+        "    degree: 5\n"
+        "    output_dt: 1.0\n"
+        "    settle_time_s: 1.0\n"
+        "    verify: false\n" + extra
+    )

@@ -8,26 +8,14 @@ import sys
 from pathlib import Path
 
 import pytest
-from dds_support import dds_env  # noqa: F401  (fixture)
+from dds_support import coarse_params, dds_env  # noqa: F401  (fixture)
 
 REPO = Path(__file__).resolve().parents[1]
-COARSE = """\
-planner:
-  ros__parameters:
-    refine: false
-    mesh_tol: 1.0e-3
-    nlp_tol: 1.0e-6
-    segments: 4
-    degree: 5
-    output_dt: 1.0
-    settle_time_s: 1.0
-    verify: false
-"""
 
 
 def test_launch_replay_end_to_end(dds_env: dict[str, str], tmp_path: Path) -> None:  # noqa: F811
     params = tmp_path / "params.yaml"
-    params.write_text(COARSE, encoding="utf-8")
+    params.write_text(coarse_params(), encoding="utf-8")
     out = tmp_path / "out"
     proc = subprocess.run(
         [sys.executable, "-m", "mal_planner.ros.launch", "--replay", str(REPO / "data" / "thesis_radar.mcap"),

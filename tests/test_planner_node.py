@@ -16,7 +16,7 @@ import time
 from pathlib import Path
 
 import pytest
-from dds_support import Snippet, dds_env, snippet  # noqa: F401  (fixtures)
+from dds_support import Snippet, coarse_params, dds_env, snippet  # noqa: F401  (fixtures)
 
 REPO = Path(__file__).resolve().parents[1]
 BAG = REPO / "data" / "thesis_radar.mcap"
@@ -24,27 +24,13 @@ SCENARIO = REPO / "scenarios" / "thesis.yaml"
 M_PER_NM = 1852.0
 BAG_T0 = 1_700_000_000.0  # first stamp in data/thesis_radar.mcap
 
-COARSE = """\
-planner:
-  ros__parameters:
-    refine: false
-    mesh_tol: 1.0e-3
-    nlp_tol: 1.0e-6
-    segments: 4
-    degree: 5
-    output_dt: 1.0
-    settle_time_s: 1.0
-    deviation_threshold_m: 0.0
-    verify: false
-    figures: false
-{extra}"""
 
 pytestmark = pytest.mark.usefixtures("dds_env")
 
 
 def params_file(tmp_path: Path, extra: str = "") -> Path:
     path = tmp_path / "planner.params.yaml"
-    path.write_text(COARSE.format(extra=extra), encoding="utf-8")
+    path.write_text(coarse_params("    deviation_threshold_m: 0.0\n    figures: false\n" + extra), encoding="utf-8")
     return path
 
 
