@@ -5,6 +5,8 @@ from __future__ import annotations
 import json
 import math
 import os
+import subprocess
+import sys
 from dataclasses import asdict
 from pathlib import Path
 
@@ -164,3 +166,19 @@ def write_outputs(result: PlanResult, out_dir: Path, figures: str | bool = "all"
     written = [_write_text(out_dir / "plan.json", json.dumps(doc, indent=1, allow_nan=False) + "\n"),
                _write_text(out_dir / "report.md", validation_report(result))]
     return written + write_figures(doc, out_dir, figures)
+
+
+def start_figures(out_dir: Path, figures: str, running: subprocess.Popen | None = None) -> subprocess.Popen | None:
+    """Render the figures of ``out_dir/plan.json`` in a background process; return at once.
+
+    At most one renderer runs: while ``running`` (the previous call's process) is busy, it is left to
+    finish, and with ``--follow`` it renders again when plan.json changed meanwhile. Returns the process
+    the caller passes back next time.
+    """
+    if running is not None and running.poll() is None:
+        return running
+    log_path = Path(out_dir) / "figures.log"
+    with open(log_path, "ab") as log_file:
+        return subprocess.Popen([sys.executable, "-m", "mal_planner.figures", str(Path(out_dir) / "plan.json"),
+                                 "--figures", figures, "--follow", "-q"], stdout=log_file, stderr=subprocess.STDOUT,
+                                stdin=subprocess.DEVNULL, start_new_session=True)
