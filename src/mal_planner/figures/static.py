@@ -396,7 +396,8 @@ def figure_overview(view: PlanView, colors: dict[str, str], seps: list[PairSepar
     n = len(view.aircraft)
     table_h = 0.6 + 0.22 * n
     fig = plt.figure(figsize=(12.0, 9.0 + table_h))
-    top = 1.0 - (0.75 + 0.2 * (n + 4) // 12) / fig.get_figheight()
+    legend_rows = -(-(n + 4) // 12)
+    top = 1.0 - (0.75 + 0.22 * legend_rows) / fig.get_figheight()
     gs = fig.add_gridspec(3, 2, height_ratios=[4.4, 3.2, table_h], hspace=0.35, wspace=0.18,
                           left=0.05, right=0.98, top=top, bottom=0.02)
     ax3 = fig.add_subplot(gs[0, 0], projection="3d", computed_zorder=False)
@@ -422,7 +423,8 @@ def figure_overview(view: PlanView, colors: dict[str, str], seps: list[PairSepar
         table[i, 1].get_text().set_color(colors[a.callsign])
         table[i, 1].get_text().set_fontweight("bold")
     verdict = "verified" if view.verified else ("NOT verified" if view.optimized else view.status.replace("_", " "))
-    fig.suptitle(f"{view.name}: {n} aircraft, landing order {' → '.join(view.callsigns)} ({view.status}, {verdict})",
+    order = view.callsigns if n <= 8 else [*view.callsigns[:3], "…", view.callsigns[-1]]
+    fig.suptitle(f"{view.name}: {n} aircraft, landing order {' → '.join(order)} ({view.status}, {verdict})",
                  fontsize=style.FONT_SIZE + 3, fontweight="bold", y=0.995)
     _legend(fig, view, colors, [Line2D([], [], color=style.GATE_COLOR, lw=3, label="gate hole")], loc="top")
     return fig
