@@ -2,7 +2,12 @@
 
 from __future__ import annotations
 
+import html as html_lib
+import json
+import re
+import subprocess
 from dataclasses import asdict
+from pathlib import Path
 
 import numpy as np
 
@@ -51,3 +56,63 @@ def synthetic_plan(n: int, optimal: bool = True) -> dict:
                      "obstacles": [asdict(o) for o in (*wall, zone)], "gates": [asdict(gate)]},
         "optimizer": {"phases": []}, "verification": None, "aircraft": aircraft,
     }
+
+
+CHROMIUM = "/usr/bin/chromium"
+_CATCH = ("<script>window.__errors=[];window.addEventListener('error',function(e){"
+          "window.__errors.push(String(e.message||e))});</script>")
+_PROBE = """<script>
+window.addEventListener('load', function () {
+  var out = document.createElement('pre'); out.id = 'probe';
+  function done(o) { out.textContent = JSON.stringify(o); document.body.appendChild(out); }
+  try {
+    var gd = document.querySelector('.plotly-graph-div');
+    var names = ((gd && gd._transitionData && gd._transitionData._frames) || []).map(function (f) { return f.name; });
+    var mid = names[Math.floor(names.length / 2)];
+    Plotly.animate(gd, [mid], {mode: 'immediate', frame: {duration: 0, redraw: true}, transition: {duration: 0}})
+      .then(function () {
+        done({errors: window.__errors, frames: names.length, frame: mid,
+              markers: gd.data.filter(function (t) { return t.mode === 'markers+text'; })
+                              .map(function (t) { return [t.x, t.y, t.z]; }),
+              canvas: !!document.querySelector('.gl-container canvas'), svg: !!document.querySelector('.main-svg')});
+      }, function (e) { done({errors: window.__errors.concat([String(e)])}); });
+  } catch (e) { done({errors: window.__errors.concat([String(e)])}); }
+});
+</script>"""
+
+
+def chromium(args: list[str], profile: Path) -> subprocess.CompletedProcess:
+    """Headless Chromium with a fresh profile, no network services, WebGL on SwiftShader."""
+    cmd = [CHROMIUM, "--headless", "--no-sandbox", "--disable-gpu", "--disable-quic", "--no-first-run",
+           "--disable-background-networking", "--disable-component-update", "--disable-sync",
+           f"--user-data-dir={profile}", "--use-angle=swiftshader", "--enable-unsafe-swiftshader",
+           "--virtual-time-budget=5000", "--window-size=1200,800", *args]
+    return subprocess.run(cmd, capture_output=True, text=True, timeout=90)
+
+
+def browser_probe(html: Path, work: Path) -> dict:
+    """Open a probed copy of ``html`` in headless Chromium; return what the page reported.
+
+    The copy records every JavaScript error and, once loaded, moves the time slider to the middle frame
+    and reports the aircraft markers' positions there. ``{"errors": [...]}`` says what went wrong.
+    """
+    text = html.read_text(encoding="utf-8")
+    probed = work / "probed.html"
+    probed.write_text(text.replace("<head>", "<head>" + _CATCH, 1).replace("</body>", _PROBE + "</body>", 1),
+                      encoding="utf-8")
+    run = chromium(["--dump-dom", probed.as_uri()], work / "profile-dom")
+    match = re.search(r'<pre id="probe">(.*?)</pre>', run.stdout, re.S)
+    if match is None:
+        return {"errors": [f"page never finished loading (chromium exit {run.returncode}): {run.stderr[-500:]}"]}
+    report = json.loads(html_lib.unescape(match.group(1)))
+    if "WebGL is not supported" in re.sub(r"<script.*?</script>", "", run.stdout, flags=re.S):
+        report["errors"].append("WebGL is not available")
+    return report
+
+
+def screenshot(html: Path, png: Path, work: Path) -> np.ndarray:
+    """Screenshot of ``html`` (1200 x 800) as an (h, w, channels) array."""
+    import matplotlib.image
+
+    chromium([f"--screenshot={png}", html.as_uri()], work / "profile-shot")
+    return matplotlib.image.imread(png)

@@ -138,5 +138,5 @@ def write_html(view: PlanView, path: str | Path) -> Path:
     """Write ``plan.html`` with plotly.js embedded (opens with no network access)."""
     path = Path(path)
     pio.write_html(figure(view), path, include_plotlyjs=True, full_html=True, auto_play=False, validate=False,
-                   default_height="95vh", config={"displaylogo": False, "responsive": True})
+                   default_height="90vh", config={"displaylogo": False, "responsive": True})
     return path
