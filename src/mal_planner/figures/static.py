@@ -51,17 +51,33 @@ def _events(a: AircraftView) -> list[tuple[str, float]]:
     return [(k, t) for k, t in (("gate", a.gate_time), ("land", a.landing_time)) if t is not None]
 
 
-def _legend(fig, view: PlanView, colors: dict[str, str], extra: Sequence[Line2D] = (), loc: str = "right") -> None:
-    """Aircraft legend outside the axes (columns for many aircraft) plus the marker key."""
+def _handles(view: PlanView, colors: dict[str, str], extra: Sequence[Line2D] = ()) -> list[Line2D]:
     handles = [Line2D([], [], color=colors[cs], lw=2, label=cs) for cs in view.callsigns]
     handles += [Line2D([], [], color="0.3", ls="", marker=style.MARKERS[k], label=lbl)
                 for k, lbl in (("start", "start"), ("gate", "gate passage"), ("land", "landing"))]
-    handles += list(extra)
+    return handles + list(extra)
+
+
+def _right_margin(fig, handles: Sequence) -> tuple[float, int]:
+    """Fraction of the figure's width a legend beside the axes needs, and its columns."""
+    ncol = style.legend_columns(len(handles), 16)
+    return style.legend_width([h.get_label() for h in handles], ncol) / fig.get_figwidth(), ncol
+
+
+def _legend(fig, view: PlanView, colors: dict[str, str], extra: Sequence[Line2D] = (), loc: str = "right",
+            layout: bool = True, top: float = 1.0) -> None:
+    """Aircraft legend (columns for many aircraft) plus the marker key, beside the axes or at the top.
+
+    ``layout``: fit the axes into the rest of the figure (tight layout below ``top``).
+    """
+    handles = _handles(view, colors, extra)
     if loc == "top":
         fig.legend(handles=handles, loc="upper center", ncol=min(len(handles), 12), bbox_to_anchor=(0.5, 0.975))
-    else:
-        fig.legend(handles=handles, loc="center left", bbox_to_anchor=(1.0, 0.5),
-                   ncol=style.legend_columns(len(handles), 16))
+        return
+    width, ncol = _right_margin(fig, handles)
+    if layout:
+        fig.tight_layout(rect=(0.0, 0.0, 1.0 - width, top))
+    fig.legend(handles=handles, loc="center right", bbox_to_anchor=(1.0, 0.5), ncol=ncol)
 
 
 def _phase_bands(ax, view: PlanView) -> None:
@@ -287,8 +303,9 @@ def figure_paths_3d(view: PlanView, colors: dict[str, str], initial: bool = Fals
     ax.set_title(f"{view.name}: {what}")
     extra = [Line2D([], [], color="0.3", ls="--", label="shortest path")] if initial else []
     extra.append(Line2D([], [], color=style.GATE_COLOR, lw=2, label="gate hole"))
-    _legend(fig, view, colors, extra)
-    fig.subplots_adjust(left=0.0, right=0.86, bottom=0.02, top=0.95)
+    width, _ = _right_margin(fig, _handles(view, colors, extra))
+    fig.subplots_adjust(left=0.0, right=1.0 - width, bottom=0.02, top=0.95)
+    _legend(fig, view, colors, extra, layout=False)
     return fig
 
 
@@ -310,11 +327,10 @@ def figure_states(view: PlanView, colors: dict[str, str]):
         draw_series(ax, view, colors, key)
     axs[-1].set_xlabel("time (s)")
     axs[0].set_xlim(left=0.0)
-    fig.tight_layout()
-    rows = _event_labels(axs[0], view, colors)
-    fig.suptitle(f"{view.name}: states against time (shaded: every other optimizer phase)",
-                 y=1.0 + (10 * rows + 4) / 72 / fig.get_figheight())
-    _legend(fig, view, colors)
+    _legend(fig, view, colors, top=0.97)
+    rows = _event_labels(axs[0], view, colors)  # their x positions do not depend on the top margin
+    fig.subplots_adjust(top=1.0 - (10 * rows + 26) / 72 / fig.get_figheight())
+    fig.suptitle(f"{view.name}: states against time (shaded: every other optimizer phase)", y=0.995, va="top")
     return fig
 
 
@@ -342,10 +358,9 @@ def figure_controls(view: PlanView, colors: dict[str, str]):
         ax.set_ylabel(label)
     axs[-1].set_xlabel("time (s)")
     axs[0].set_xlim(left=0.0)
-    fig.suptitle(f"{view.name}: controls against their limits (dashed)", y=1.0)
-    fig.tight_layout()
+    fig.suptitle(f"{view.name}: controls against their limits (dashed)", y=0.995, va="top")
     _legend(fig, view, colors, [Line2D([], [], color=style.REQUIRED_COLOR if same else "0.3", ls="--",
-                                       label="limit")])
+                                       label="limit")], top=0.97)
     return fig
 
 
@@ -355,22 +370,31 @@ def figure_separation(view: PlanView, colors: dict[str, str], seps: list[PairSep
     draw_separation(ax, view, seps, colors)
     ax.set_xlim(left=0.0)
     ax.set_title(f"{view.name}: distance between every pair of airborne aircraft")
-    ax.legend(loc="center left", bbox_to_anchor=(1.0, 0.5))
+    handles, labels = ax.get_legend_handles_labels()
+    width = style.legend_width(labels) / fig.get_figwidth()
+    fig.tight_layout(rect=(0.0, 0.0, 1.0 - width, 1.0))
+    fig.legend(handles, labels, loc="center right", bbox_to_anchor=(1.0, 0.5))
+    return fig
+
+
+def _figure_2d(view: PlanView, colors: dict[str, str], size: tuple[float, float], draw: Callable) -> object:
+    """A 2-D view with the legend at its right; the axes are placed before drawing (labels need them)."""
+    fig, ax = plt.subplots(figsize=size)
+    extra = [Line2D([], [], color=style.GATE_COLOR, lw=3, label="gate hole")]
+    width, _ = _right_margin(fig, _handles(view, colors, extra))
+    em_w, em_h = style.FONT_SIZE / 72 / size[0], style.FONT_SIZE / 72 / size[1]
+    fig.subplots_adjust(left=6 * em_w, right=1.0 - width - em_w, bottom=4 * em_h, top=1.0 - 2.5 * em_h)
+    draw(ax, view, colors)
+    _legend(fig, view, colors, extra, layout=False)
     return fig
 
 
 def figure_plan(view: PlanView, colors: dict[str, str]):
-    fig, ax = plt.subplots(figsize=(style.WIDTH_IN * 0.8, style.WIDTH_IN * 0.8))
-    draw_plan(ax, view, colors)
-    _legend(fig, view, colors, [Line2D([], [], color=style.GATE_COLOR, lw=3, label="gate hole")])
-    return fig
+    return _figure_2d(view, colors, (style.WIDTH_IN, style.WIDTH_IN * 0.85), draw_plan)
 
 
 def figure_yz(view: PlanView, colors: dict[str, str]):
-    fig, ax = plt.subplots(figsize=(style.WIDTH_IN, 3.2))
-    draw_yz(ax, view, colors)
-    _legend(fig, view, colors, [Line2D([], [], color=style.GATE_COLOR, lw=3, label="gate hole")])
-    return fig
+    return _figure_2d(view, colors, (style.WIDTH_IN, 3.2), draw_yz)
 
 
 def summary_rows(view: PlanView, seps: list[PairSeparation]) -> list[list[str]]:

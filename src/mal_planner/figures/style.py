@@ -70,6 +70,17 @@ def legend_columns(n: int, per_column: int = 12) -> int:
     return max(1, -(-n // per_column))
 
 
+def legend_width(labels: list[str], ncol: int = 1, fontsize: float = FONT_SIZE - 1) -> float:
+    """Estimated width (inches) of a frameless legend with these labels in ``ncol`` columns.
+
+    Figures reserve it beside the axes instead of saving with a tight bounding box, which would draw
+    every figure twice.
+    """
+    em = fontsize / 72.0
+    column = (max((len(t) for t in labels), default=0) * 0.6 + 2.0 + 0.8 + 1.0) * em
+    return ncol * column + 0.6 * em
+
+
 def apply_style() -> None:
     """Select the Agg backend and set the team's rcParams (idempotent)."""
     import matplotlib
@@ -92,14 +103,13 @@ def apply_style() -> None:
         "lines.linewidth": 1.4,
         "figure.dpi": DPI,
         "savefig.dpi": DPI,
-        "savefig.bbox": "tight",
-        "savefig.pad_inches": 0.05,
+        "savefig.bbox": "standard",
         "image.cmap": "viridis",
     })
 
 
 def save(fig: Any, path: str | Path, dpi: int | None = None) -> Path:
-    """Save ``fig`` as PNG (tight bounding box, the team's dpi) and close it; return the path."""
+    """Save ``fig`` as PNG (the team's dpi; the figure's own size and layout) and close it; return the path."""
     import matplotlib.pyplot as plt
 
     path = Path(path)
