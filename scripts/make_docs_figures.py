@@ -36,7 +36,11 @@ def screenshot_html(doc: dict, png: Path) -> bool:
     if not CHROMIUM.exists():
         return False
     with tempfile.TemporaryDirectory() as tmp:
-        page = write_html(plan_view(doc), Path(tmp) / "plan.html")
+        view = plan_view(doc)
+        t = round(0.3 * max(a.trajectory.t[-1] for a in view.aircraft))  # aircraft mid-flight
+        jump = (f"var gd = document.getElementById('{{plot_id}}'); Plotly.animate(gd, ['{t:.1f}'], "
+                "{mode: 'immediate', frame: {duration: 0, redraw: true}, transition: {duration: 0}});")
+        page = write_html(view, Path(tmp) / "plan.html", post_script=jump)
         subprocess.run([str(CHROMIUM), "--headless", "--no-sandbox", "--disable-gpu", "--disable-quic",
                         "--no-first-run", "--disable-background-networking", "--disable-component-update",
                         "--disable-sync", f"--user-data-dir={tmp}/profile", "--use-angle=swiftshader",

@@ -121,7 +121,7 @@ def figure(view: PlanView) -> dict:
                "zaxis": {"title": {"text": "z (nm)"}, "range": [z0, z1]},
                "aspectmode": "manual",
                "aspectratio": {"x": (x1 - x0) / span, "y": (y1 - y0) / span, "z": 0.35},
-               "camera": {"eye": {"x": 1.3, "y": -1.5, "z": 0.9}}},
+               "camera": {"eye": {"x": 0.95, "y": -1.4, "z": 0.7}}, "domain": {"x": [0.08, 1.0], "y": [0.0, 1.0]}},
         updatemenus=[{"type": "buttons", "showactive": False, "x": 0.0, "y": 0.0, "xanchor": "left",
                       "yanchor": "top", "direction": "left", "pad": {"t": 40, "r": 10},
                       "buttons": [{"label": "▶ play", "method": "animate", "args": [None, play]},
@@ -134,9 +134,12 @@ def figure(view: PlanView) -> dict:
     return {"data": data, "layout": layout, "frames": frames}
 
 
-def write_html(view: PlanView, path: str | Path) -> Path:
-    """Write ``plan.html`` with plotly.js embedded (opens with no network access)."""
+def write_html(view: PlanView, path: str | Path, post_script: str | None = None) -> Path:
+    """Write ``plan.html`` with plotly.js embedded (opens with no network access).
+
+    ``post_script``: JavaScript run after the plot is made (``{plot_id}`` names its div).
+    """
     path = Path(path)
     pio.write_html(figure(view), path, include_plotlyjs=True, full_html=True, auto_play=False, validate=False,
-                   default_height="90vh", config={"displaylogo": False, "responsive": True})
+                   default_height="96vh", config={"displaylogo": False, "responsive": True}, post_script=post_script)
     return path
