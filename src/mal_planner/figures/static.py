@@ -53,8 +53,12 @@ def _events(a: AircraftView) -> list[tuple[str, float]]:
 
 def _handles(view: PlanView, colors: dict[str, str], extra: Sequence[Line2D] = ()) -> list[Line2D]:
     handles = [Line2D([], [], color=colors[cs], lw=2, label=cs) for cs in view.callsigns]
-    handles += [Line2D([], [], color="0.3", ls="", marker=style.MARKERS[k], label=lbl)
-                for k, lbl in (("start", "start"), ("gate", "gate passage"), ("land", "landing"))]
+    kinds = [("start", "start"), ("gate", "gate passage"), ("land", "landing")]
+    if all(a.gate_time is None for a in view.aircraft):
+        kinds.pop(1)
+    handles += [Line2D([], [], color="0.3", ls="", marker=style.MARKERS[k], label=lbl) for k, lbl in kinds]
+    if view.gates:
+        handles.append(Line2D([], [], color=style.GATE_COLOR, lw=3, label="gate hole"))
     return handles + list(extra)
 
 
@@ -196,7 +200,8 @@ def _draw_section_view(ax, view: PlanView, axes: tuple[int, int], cut: float | N
     """Obstacles on a 2-D view: their shadows (light) and the cut through the gate hole (dark)."""
     for ob in view.obstacles:
         shadow = projection(ob, axes)
-        ax.fill(shadow[:, 0], shadow[:, 1], color=style.OBSTACLE_COLOR, alpha=0.12, lw=0)
+        ax.fill(shadow[:, 0], shadow[:, 1], color=style.OBSTACLE_COLOR, alpha=0.12 if cut is not None else 0.4,
+                lw=0)
         cut_outline = section(ob, axes, cut) if cut is not None else None
         if cut_outline is not None:
             ax.fill(cut_outline[:, 0], cut_outline[:, 1], facecolor=style.OBSTACLE_COLOR, alpha=0.55,
@@ -302,7 +307,6 @@ def figure_paths_3d(view: PlanView, colors: dict[str, str], initial: bool = Fals
     what = "initial paths (RRT + sequencer)" if initial else "optimal trajectories"
     ax.set_title(f"{view.name}: {what}")
     extra = [Line2D([], [], color="0.3", ls="--", label="shortest path")] if initial else []
-    extra.append(Line2D([], [], color=style.GATE_COLOR, lw=2, label="gate hole"))
     width, _ = _right_margin(fig, _handles(view, colors, extra))
     fig.subplots_adjust(left=0.0, right=1.0 - width, bottom=0.02, top=0.95)
     _legend(fig, view, colors, extra, layout=False)
@@ -380,7 +384,7 @@ def figure_separation(view: PlanView, colors: dict[str, str], seps: list[PairSep
 def _figure_2d(view: PlanView, colors: dict[str, str], size: tuple[float, float], draw: Callable) -> object:
     """A 2-D view with the legend at its right; the axes are placed before drawing (labels need them)."""
     fig, ax = plt.subplots(figsize=size)
-    extra = [Line2D([], [], color=style.GATE_COLOR, lw=3, label="gate hole")]
+    extra: list[Line2D] = []
     width, _ = _right_margin(fig, _handles(view, colors, extra))
     em_w, em_h = style.FONT_SIZE / 72 / size[0], style.FONT_SIZE / 72 / size[1]
     fig.subplots_adjust(left=6 * em_w, right=1.0 - width - em_w, bottom=4 * em_h, top=1.0 - 2.5 * em_h)
@@ -450,7 +454,7 @@ def figure_overview(view: PlanView, colors: dict[str, str], seps: list[PairSepar
     order = view.callsigns if n <= 8 else [*view.callsigns[:3], "…", view.callsigns[-1]]
     fig.suptitle(f"{view.name}: {n} aircraft, landing order {' → '.join(order)} ({view.status}, {verdict})",
                  fontsize=style.FONT_SIZE + 3, fontweight="bold", y=0.995)
-    _legend(fig, view, colors, [Line2D([], [], color=style.GATE_COLOR, lw=3, label="gate hole")], loc="top")
+    _legend(fig, view, colors, loc="top")
     return fig
 
 
