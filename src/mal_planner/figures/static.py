@@ -86,6 +86,8 @@ def _legend(fig, view: PlanView, colors: dict[str, str], extra: Sequence[Line2D]
 
 def _phase_bands(ax, view: PlanView) -> None:
     """Every other optimizer phase shaded (the phases end at the gate passages and landings)."""
+    if not view.optimized:
+        return
     bounds = [0.0, *view.event_times()]
     for k in range(1, len(bounds) - 1, 2):
         ax.axvspan(bounds[k], bounds[k + 1], color=style.PHASE_BAND_COLOR, alpha=style.PHASE_BAND_ALPHA, lw=0)
@@ -434,7 +436,8 @@ def figure_overview(view: PlanView, colors: dict[str, str], seps: list[PairSepar
     draw_plan(fig.add_subplot(gs[0, 1]), view, colors, labels=True)
     axz = fig.add_subplot(gs[1, 0])
     draw_series(axz, view, colors, "z")
-    axz.set(xlabel="time (s)", title="Altitude against time (shaded: every other optimizer phase)")
+    shaded = " (shaded: every other optimizer phase)" if view.optimized else ""
+    axz.set(xlabel="time (s)", title=f"Altitude against time{shaded}")
     axs = fig.add_subplot(gs[1, 1])
     draw_separation(axs, view, seps, colors)
     axs.set_title("Separation of every pair")
@@ -450,9 +453,10 @@ def figure_overview(view: PlanView, colors: dict[str, str], seps: list[PairSepar
     for i, a in enumerate(view.aircraft, start=1):
         table[i, 1].get_text().set_color(colors[a.callsign])
         table[i, 1].get_text().set_fontweight("bold")
-    verdict = "verified" if view.verified else ("NOT verified" if view.optimized else view.status.replace("_", " "))
+    verdict = ("optimal, verified" if view.verified else "optimal, NOT verified") if view.optimized else (
+        view.status.replace("_", " "))
     order = view.callsigns if n <= 8 else [*view.callsigns[:3], "…", view.callsigns[-1]]
-    fig.suptitle(f"{view.name}: {n} aircraft, landing order {' → '.join(order)} ({view.status}, {verdict})",
+    fig.suptitle(f"{view.name}: {n} aircraft, landing order {' → '.join(order)} ({verdict})",
                  fontsize=style.FONT_SIZE + 3, fontweight="bold", y=0.995)
     _legend(fig, view, colors, loc="top")
     return fig
