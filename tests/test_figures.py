@@ -127,6 +127,17 @@ def test_initializer_only_plan_has_no_control_figures(tmp_path: Path) -> None:
     assert {"overview", "initial_paths_3d", "plan_view"} <= names and not {"states", "controls"} & names
 
 
+def test_plan_json_without_geometry_still_renders() -> None:
+    doc = synthetic_plan(2)
+    doc["scenario"] = {"name": "old", "source": "<test>"}  # written before plan.json carried the geometry
+    for a in doc["aircraft"]:
+        del a["limits"]
+    view = plan_view(doc)
+    assert view.obstacles == () and view.gates == () and view.airspace[2].tolist() == [0.0, 0.25]
+    fig = static.figure_overview(view, style.color_map(view.callsigns), view.separations())
+    assert len(fig.axes) == 5
+
+
 # -- plan.html -----------------------------------------------------------------------------------------------
 def test_html_is_self_contained_with_a_time_slider(thesis_doc, tmp_path: Path) -> None:
     view = plan_view(thesis_doc)

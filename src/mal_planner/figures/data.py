@@ -103,8 +103,15 @@ def _initial(callsign: str, doc: dict) -> Trajectory:
     return Trajectory(callsign, np.asarray(wp["t"], float), states)
 
 
+def _extent(aircraft: list[AircraftView]) -> np.ndarray:
+    """The paths' bounding box: the airspace of a plan.json written before it carried the geometry."""
+    pts = np.concatenate([a.trajectory.positions for a in aircraft])
+    lo, hi = pts.min(axis=0), pts.max(axis=0)
+    return np.stack([lo, np.maximum(hi, lo + 1e-3)], axis=1)
+
+
 def plan_view(doc: dict) -> PlanView:
-    """Build the view from a parsed plan.json document."""
+    """Build the view from a parsed plan.json document (older documents without geometry draw none)."""
     sc = doc["scenario"]
     aircraft = []
     for a in doc["aircraft"]:
@@ -119,7 +126,7 @@ def plan_view(doc: dict) -> PlanView:
     optimizer = doc.get("optimizer") or {}
     return PlanView(
         name=sc["name"], status=doc["status"], verified=bool(doc.get("verified")), aircraft=aircraft,
-        airspace=np.asarray(sc.get("airspace", [[-3, 3], [0, 6], [0, 0.3]]), float),
+        airspace=np.asarray(sc["airspace"], float) if "airspace" in sc else _extent(aircraft),
         runway=np.asarray(sc.get("runway", [0, 0, 0, 0, 0]), float),
         obstacles=tuple(Superquadric(o["name"], tuple(o["center"]), tuple(o["semi_axes"]), int(o["p"]))
                         for o in sc.get("obstacles", [])),
