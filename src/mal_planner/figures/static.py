@@ -94,22 +94,19 @@ def _phase_bands(ax, view: PlanView) -> None:
 
 
 def stagger_rows(positions: Sequence[float], widths: Sequence[float]) -> list[int]:
-    """Row of each label (greedy, in the order given) so that labels in one row do not overlap.
+    """Row of each label so that labels in one row do not overlap (greedy, from left to right).
 
     ``positions`` are the labels' centres and ``widths`` their widths, in the same units.
     """
     ends: list[float] = []
-    rows = []
-    order = np.argsort(positions, kind="stable")
     out = [0] * len(positions)
-    for i in order:
+    for i in np.argsort(positions, kind="stable"):
         lo = positions[i] - widths[i] / 2
         row = next((r for r, end in enumerate(ends) if lo > end), len(ends))
         if row == len(ends):
             ends.append(0.0)
         ends[row] = positions[i] + widths[i] / 2
         out[i] = row
-        rows.append(row)
     return out
 
 
