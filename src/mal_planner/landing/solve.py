@@ -213,8 +213,10 @@ class LandingOptimizer:
                 # Dense samples of the solution's own interpolants (states and controls), plus the nodes.
                 # A phase boundary appears twice: the end of one phase with the control that applied up
                 # to it, then the start of the next with the control that applies from it.
-                n = max(int(np.ceil((phase.tf - phase.t0) / self.options.output_dt)), 1) + 1
-                t = np.union1d(np.linspace(phase.t0, phase.tf, n), phase.t)
+                # The global grid k * output_dt inside the phase, its ends and the nodes.
+                dt = self.options.output_dt
+                grid = np.arange(np.floor(phase.t0 / dt) + 1, np.ceil(phase.tf / dt)) * dt
+                t = np.union1d(np.concatenate([grid, [phase.t0, phase.tf]]), phase.t)
                 x_all, u_all = phase.interpolate(t)
                 x = x_all[:, 5 * j:5 * j + 5]
                 u = u_all[:, 2 * j:2 * j + 2]  # published exactly as solved: the verification checks them
