@@ -196,3 +196,22 @@ def test_cli_random_seed_is_reported(tmp_path: Path) -> None:
                    str(tmp_path), "-q")
     assert proc.returncode == 0 and "random seed" in proc.stderr
     assert "exit codes" in run_cli("--help").stdout
+
+
+def test_unknown_initializer_is_refused_when_the_planner_is_made() -> None:
+    from mal_planner.errors import InvalidInput
+
+    with pytest.raises(InvalidInput, match="unknown planner 'ompl:Nope'"):
+        Planner(PlanOptions(initializer="ompl:Nope"))
+
+
+@pytest.mark.parametrize("planner", ["ompl:PRM", "ompl:PRMstar"])
+def test_threaded_ompl_planners_do_not_deadlock(planner: str) -> None:
+    """PRM grows its roadmap in a thread; a Python stop callback deadlocked it (and the node ignored SIGINT)."""
+    code = ("import numpy as np; from mal_planner.scenario import load_scenario; "
+            "from mal_planner.initializer import make_planner, CollisionChecker; "
+            "sc = load_scenario('scenarios/no_fly_zones.yaml'); ch = CollisionChecker.from_scenario(sc); "
+            f"p = make_planner('{planner}').plan(ch, sc.aircraft[0].position, sc.runway_state[:3], "
+            "np.random.default_rng(0)); print(len(p))")
+    proc = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=60)
+    assert proc.returncode == 0 and int(proc.stdout.strip()) >= 2, proc.stderr
