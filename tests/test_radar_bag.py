@@ -135,9 +135,25 @@ def test_make_radar_bag_is_deterministic(tmp_path: Path) -> None:
 
 
 # -- nodes on DDS -----------------------------------------------------------------------------------------
+_started: list[subprocess.Popen[str]] = []
+
+
+@pytest.fixture(autouse=True)
+def _no_leftover_processes():
+    """Kill any replay/record process a test left running (e.g. after a failed assertion)."""
+    yield
+    while _started:
+        proc = _started.pop()
+        if proc.poll() is None:
+            proc.kill()
+            proc.communicate()
+
+
 def _start(env: dict[str, str], module: str, *args: str) -> subprocess.Popen[str]:
-    return subprocess.Popen([sys.executable, "-m", f"mal_planner.ros.{module}", *args], env=env,
+    proc = subprocess.Popen([sys.executable, "-m", f"mal_planner.ros.{module}", *args], env=env,
                             stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)  # fmt: skip
+    _started.append(proc)
+    return proc
 
 
 def _finish(proc: subprocess.Popen[str], timeout: float = 30.0) -> tuple[int, str, str]:
@@ -310,3 +326,18 @@ def test_radar_simulator_level_flight_and_plan() -> None:
     np.testing.assert_allclose(sim.tracks[0].state, [0.0, 2.5, 0.125, 0.0, -1.55], atol=1e-9)
     sim.step_to(140.0)  # past the plan: level flight from the last state
     assert sim.tracks[0].state[1] < 2.0
+
+
+def test_bag_io_does_not_load_cyclonedds() -> None:
+    """Replay and record on the rclpy backend must not load a second Cyclone library: reading, (de)serializing
+    and typestore use of bagio/replay/record import no cyclonedds module."""
+    code = (
+        "import sys\n"
+        "import mal_planner.ros.bagio as b, mal_planner.ros.replay, mal_planner.ros.record\n"
+        f"r = b.open_reader({str(SRC.parent / 'data' / 'thesis_radar.mcap')!r})\n"
+        "c, t, raw = next(iter(r.messages()))\n"
+        "assert b.serialize(r.deserialize(raw, c.msgtype), c.msgtype) == bytes(raw)\n"
+        "print(sorted(m for m in sys.modules if m.startswith('cyclonedds')))\n"
+    )
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=60, check=True)
+    assert out.stdout.strip() == "[]", out.stdout
