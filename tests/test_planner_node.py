@@ -329,9 +329,10 @@ def test_plan_scenario_extrapolates_and_adds_unknown_aircraft() -> None:
     moved = inputs.scenario.aircraft_by_callsign("A1").state0[:3] - a1.state0[:3]
     assert np.linalg.norm(moved) == pytest.approx(2.0 * a1.speed)
     x9 = inputs.scenario.aircraft_by_callsign("X9")
-    assert x9.speed == pytest.approx(0.05) and x9.landing_time is None
-    # a missing landing time (X9) hands all landing times to the sequencer
-    assert inputs.scenario.aircraft_by_callsign("A1").landing_time is None
+    assert x9.speed == pytest.approx(0.05)
+    # an unknown aircraft (X9) keeps A1's fixed landing time and lands after it, spaced (issue 10)
+    assert inputs.scenario.aircraft_by_callsign("A1").landing_time == pytest.approx(153.0)
+    assert 153.0 + sc.landing_spacing_s <= x9.landing_time <= 153.0 + sc.max_landing_spacing_s
     only_a1 = build_plan_scenario(sc, {"A1": tracks["A1"]}, 12.0, landing_shift=2.0)
     assert only_a1.scenario.aircraft[0].landing_time == pytest.approx(153.0)
 
