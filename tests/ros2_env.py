@@ -11,6 +11,7 @@ from __future__ import annotations
 
 import functools
 import os
+import shutil
 import subprocess
 import sys
 from pathlib import Path
@@ -25,12 +26,14 @@ SRC = Path(__file__).resolve().parents[1] / "src"
 
 
 @functools.cache
-def _sourced() -> dict[str, str] | str:
-    """The environment after sourcing ROS_SETUP, or the reason it is unusable."""
+def _sourced(overlay: str = "") -> dict[str, str] | str:
+    """The environment after sourcing ROS_SETUP (and an overlay's local_setup.bash), or the reason it is
+    unusable."""
     if not ROS_SETUP.is_file():
         return f"{SKIP_PREFIX}: {ROS_SETUP} not found; {INSTALL_HINT}"
     venv_bin = str(Path(sys.executable).parent)
-    cmd = f"set +u; source {ROS_SETUP} >/dev/null && env -0"
+    extra = f" && source {overlay}/local_setup.bash >/dev/null" if overlay else ""
+    cmd = f"set +u; source {ROS_SETUP} >/dev/null{extra} && env -0"
     base = {k: v for k, v in os.environ.items() if not k.startswith(("AMENT_", "COLCON_", "ROS_"))}
     base["PATH"] = venv_bin + os.pathsep + base.get("PATH", "")
     try:
@@ -65,12 +68,14 @@ def skip_without_ros2() -> None:
         pytest.skip(reason)
 
 
-def ros2_env(dds: dict[str, str] | None = None) -> dict[str, str]:
-    """Environment for a ROS-side subprocess: sourced ROS 2 plus the DDS settings (domain id, loopback
-    config) of ``dds`` (default: this process's) and our sources on PYTHONPATH."""
+def ros2_env(dds: dict[str, str] | None = None, overlay: Path | None = None) -> dict[str, str]:
+    """Environment for a ROS-side subprocess: sourced ROS 2 (plus the colcon ``overlay`` install, e.g. the
+    built mal_msgs), the DDS settings (domain id, loopback config) of ``dds`` (default: this process's) and
+    our sources on PYTHONPATH."""
     skip_without_ros2()
-    got = _sourced()
-    assert isinstance(got, dict)
+    got = _sourced(str(overlay) if overlay else "")
+    if isinstance(got, str):
+        pytest.fail(got)
     env = dict(got)
     src = dds if dds is not None else os.environ
     for key in ("ROS_DOMAIN_ID", "CYCLONEDDS_URI", "MAL_ROS_BACKEND"):
@@ -84,3 +89,15 @@ def ros2(args: list[str], env: dict[str, str], timeout: float = 20.0) -> subproc
     """Run ``ros2 <args>`` (``--no-daemon`` where the verb takes it is up to the caller) with a hard timeout."""
     return subprocess.run(["timeout", "-k", "2", str(timeout), "ros2", *args], env=env, capture_output=True,
                           text=True, timeout=timeout + 5, check=False)
+
+
+def colcon_build_mal_msgs(workspace: Path) -> Path:
+    """Build ros2_ws/src/mal_msgs with colcon against /opt/ros/jazzy in ``workspace``; its install folder."""
+    shutil.copytree(SRC.parent / "ros2_ws" / "src" / "mal_msgs", workspace / "src" / "mal_msgs", symlinks=False)
+    env = ros2_env()
+    env["MAKEFLAGS"] = "-j2"
+    proc = subprocess.run(["timeout", "-k", "5", "600", "colcon", "build", "--cmake-args", "-DBUILD_TESTING=OFF"],
+                          cwd=workspace, env=env, capture_output=True, text=True, check=False)
+    if proc.returncode:
+        pytest.fail(f"colcon build of mal_msgs failed ({proc.returncode}):\n{proc.stdout[-3000:]}{proc.stderr[-3000:]}")
+    return workspace / "install"

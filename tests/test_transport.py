@@ -1,4 +1,6 @@
-"""Built-in Cyclone DDS backend: real DDS on loopback between processes, as a ROS 2 node would see us."""
+"""Transport on real DDS (loopback) between processes: the node under test in a child process runs on each
+backend (``backend_snippet``: built-in Cyclone, or rclpy on the real ROS 2 Jazzy); the test side is always
+the built-in backend, so the rclpy runs are interop checks as well."""
 
 import time
 from dataclasses import dataclass
@@ -6,7 +8,6 @@ from pathlib import Path
 
 import pytest
 from cyclonedds.idl import IdlStruct
-from dds_support import dds_env, snippet  # noqa: F401  (fixtures)
 
 from mal_planner.ros.transport import QOS_LATCHED, create_node, load_params_file, resolve_name
 
@@ -22,7 +23,7 @@ class String(IdlStruct, typename="std_msgs::msg::dds_::String_"):
 
 TALKER = """
 from mal_planner.ros.transport import create_node
-node = create_node("talker", "atc", backend="cyclone")
+node = create_node("talker", "atc", backend="auto")
 String = node.types.msg("std_msgs/msg/String")
 pub = node.create_publisher("std_msgs/msg/String", "chatter", 10)
 count = [0]
@@ -42,8 +43,8 @@ def spin_until(node, predicate, timeout: float = 10.0) -> bool:
     return predicate()
 
 
-def test_pub_sub_between_processes(snippet) -> None:  # noqa: F811
-    snippet(TALKER).wait_for_line("ready")
+def test_pub_sub_between_processes(backend_snippet) -> None:
+    backend_snippet(TALKER).wait_for_line("ready")
     with create_node("listener", "atc", backend="cyclone") as node:
         got: list[str] = []
         sub = node.create_subscription(
@@ -54,14 +55,14 @@ def test_pub_sub_between_processes(snippet) -> None:  # noqa: F811
         assert got[0].startswith("hello ")
 
 
-def test_raw_cyclonedds_reader_sees_ros_topic(snippet) -> None:  # noqa: F811
+def test_raw_cyclonedds_reader_sees_ros_topic(backend_snippet) -> None:
     """A plain DDS reader (hand-written IdlStruct) receives our rt/ topic, like a ROS 2 node would."""
     from cyclonedds.core import Policy, Qos
     from cyclonedds.domain import DomainParticipant
     from cyclonedds.sub import DataReader
     from cyclonedds.topic import Topic
 
-    snippet(TALKER).wait_for_line("ready")
+    backend_snippet(TALKER).wait_for_line("ready")
     dp = DomainParticipant(int(__import__("os").environ["ROS_DOMAIN_ID"]))
     reader = DataReader(dp, Topic(dp, "rt/atc/chatter", String), qos=Qos(Policy.Reliability.Reliable(0)))
     samples = []
@@ -78,7 +79,7 @@ def test_raw_cyclonedds_reader_sees_ros_topic(snippet) -> None:  # noqa: F811
 
 TRIGGER_SERVER = """
 from mal_planner.ros.transport import create_node
-node = create_node("server", backend="cyclone")
+node = create_node("server", backend="auto")
 def handle(request, response):
     response.success = True
     response.message = "triggered"
@@ -89,8 +90,8 @@ node.spin()
 """
 
 
-def test_trigger_service_between_processes(snippet) -> None:  # noqa: F811
-    snippet(TRIGGER_SERVER).wait_for_line("ready")
+def test_trigger_service_between_processes(backend_snippet) -> None:
+    backend_snippet(TRIGGER_SERVER).wait_for_line("ready")
     with create_node("caller", backend="cyclone") as node:
         client = node.create_client("std_srvs/srv/Trigger", "trigger")
         assert client.wait_for_service(10.0)
@@ -101,7 +102,7 @@ def test_trigger_service_between_processes(snippet) -> None:  # noqa: F811
 
 PLAN_SERVER = """
 from mal_planner.ros.transport import create_node
-node = create_node("planner", "atc", backend="cyclone")
+node = create_node("planner", "atc", backend="auto")
 T = node.types
 def handle(request, response):
     plan_cls = T.msg("mal_msgs/msg/AircraftPlan")
@@ -121,8 +122,8 @@ node.spin()
 """
 
 
-def test_plan_landing_service_between_processes(snippet) -> None:  # noqa: F811
-    snippet(PLAN_SERVER).wait_for_line("ready")
+def test_plan_landing_service_between_processes(backend_snippet) -> None:
+    backend_snippet(PLAN_SERVER).wait_for_line("ready")
     with create_node("atc_client", backend="cyclone") as node:
         srv = node.types.srv("mal_msgs/srv/PlanLanding")
         state = node.types.msg("mal_msgs/msg/AircraftState")
@@ -139,10 +140,10 @@ def test_plan_landing_service_between_processes(snippet) -> None:  # noqa: F811
         assert response.paths[1].poses[0].pose.position.x == -15000.0
 
 
-def test_call_from_other_thread_while_spinning(snippet) -> None:  # noqa: F811
+def test_call_from_other_thread_while_spinning(backend_snippet) -> None:
     import threading
 
-    snippet(TRIGGER_SERVER).wait_for_line("ready")
+    backend_snippet(TRIGGER_SERVER).wait_for_line("ready")
     with create_node("threaded", backend="cyclone") as node:
         client = node.create_client("std_srvs/srv/Trigger", "/trigger")
         spinner = threading.Thread(target=node.spin, daemon=True)
@@ -156,7 +157,7 @@ def test_call_from_other_thread_while_spinning(snippet) -> None:  # noqa: F811
 
 LATCHED = """
 from mal_planner.ros.transport import QOS_LATCHED, create_node
-node = create_node("radar", backend="cyclone")
+node = create_node("radar", backend="auto")
 pub = node.create_publisher("std_msgs/msg/String", "/latched", QOS_LATCHED)
 for i in range(3):
     pub.publish(node.types.msg("std_msgs/msg/String")(data=f"state {i}"))
@@ -165,8 +166,8 @@ node.spin()
 """
 
 
-def test_late_joiner_gets_last_latched_sample(snippet) -> None:  # noqa: F811
-    snippet(LATCHED).wait_for_line("published")
+def test_late_joiner_gets_last_latched_sample(backend_snippet) -> None:
+    backend_snippet(LATCHED).wait_for_line("published")
     time.sleep(0.3)
     with create_node("late", backend="cyclone") as node:
         got: list[str] = []
@@ -253,7 +254,7 @@ def test_name_resolution() -> None:
 REENTRANT_SERVER = """
 import threading
 from mal_planner.ros.transport import create_node
-node = create_node("waiter", backend="cyclone")
+node = create_node("waiter", backend="auto")
 released = threading.Event()
 node.create_subscription("std_msgs/msg/String", "release", lambda msg: released.set(), 10)
 def handle(request, response):
@@ -268,8 +269,8 @@ node.spin()
 """
 
 
-def test_reentrant_service_does_not_block_the_node(snippet) -> None:  # noqa: F811
-    snippet(REENTRANT_SERVER).wait_for_line("ready")
+def test_reentrant_service_does_not_block_the_node(backend_snippet) -> None:
+    backend_snippet(REENTRANT_SERVER).wait_for_line("ready")
     with create_node("releaser", backend="cyclone") as node:
         srv = node.types.srv("std_srvs/srv/Trigger")
         client = node.create_client(srv, "wait")
