@@ -29,7 +29,7 @@ import numpy as np
 
 from mal_planner.dynamics import bank_angle
 from mal_planner.pipeline import Planner, PlanResult
-from mal_planner.ros.convert import aircraft_state_to_planner, path_msg, time_to_msg
+from mal_planner.ros.convert import aircraft_state_to_planner, byte_field, path_msg, time_to_msg
 from mal_planner.ros.markers import marker_array
 from mal_planner.ros.node_params import NodeParams, declare_parameters, describe, read_params_file, update_params
 from mal_planner.ros.plan_scenario import NoFlyZoneError, PlanInputs, apply_no_fly_zone, build_plan_scenario
@@ -507,8 +507,8 @@ class PlannerNode:
                        kv("reasons", "; ".join(rep.reasons) if rep else "")]
             values += [kv(k, f"{v:.3f}") for k, v in result.timings.items()]
         status = T.msg("diagnostic_msgs/msg/DiagnosticStatus")(
-            level=level, name=f"{self.node.get_name()}: landing plan", message=message, hardware_id="mal_planner",
-            values=values)
+            level=byte_field(T, level), name=f"{self.node.get_name()}: landing plan", message=message,
+            hardware_id="mal_planner", values=values)
         header = T.msg("std_msgs/msg/Header")(stamp=time_to_msg(T, time.time()), frame_id="")
         self.diag_pub.publish(T.msg("diagnostic_msgs/msg/DiagnosticArray")(header=header, status=[status]))
 

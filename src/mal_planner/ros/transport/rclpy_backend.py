@@ -55,6 +55,8 @@ def to_rclpy_qos(qos: QoSProfile | int | None) -> RclpyQoSProfile:
 class RclpyTypes:
     """Message/service classes by ROS type name, imported from the generated Python packages."""
 
+    bytes_for_byte = True  # a `byte` field takes bytes of length 1 (see ros/convert.py byte_field)
+
     def msg(self, name: str) -> type:
         pkg, _, cls = _split(name, "msg")
         return getattr(importlib.import_module(f"{pkg}.msg"), cls)
