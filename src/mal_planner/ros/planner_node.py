@@ -389,14 +389,14 @@ class PlannerNode:
         callsigns = [a.callsign for a in inputs.scenario.aircraft]
         plan = self._landing_plan_msg(None, inputs.plan_start, callsigns)
         if job.explicit is None:
-            log.error("%s: keeping the last plan%s", reason, "" if self._current else " (none yet)")
+            reason += "; keeping the last plan" if self._current else "; no plan yet"
+            log.error("%s", reason)
             self.planner = Planner(self.params.plan_options())
-            self._publish_diagnostics(result, f"FAILED: {reason}; keeping the last plan", failed=True)
+            self._publish_diagnostics(result, f"FAILED: {reason}", failed=True)
         else:
             log.error("what-if plan failed: %s", reason)
         paths = list(self._path_msgs(result, inputs.plan_start).values()) if result is not None else []
-        return PlanOutcome(False, f"{reason}; keeping the last plan" if job.explicit is None else reason, plan,
-                           paths, result)
+        return PlanOutcome(False, reason, plan, paths, result)
 
     @staticmethod
     def _status_text(result: PlanResult) -> str:
