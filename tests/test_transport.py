@@ -285,3 +285,60 @@ def test_reentrant_service_does_not_block_the_node(backend_snippet) -> None:
             node.spin_until_future_complete(future, 0.2)
         response = future.result(timeout=0)
         assert response.success and response.message == "released"
+
+
+def test_parameter_services_follow_rclpy() -> None:
+    """Built-in backend, no ROS needed: the rcl_interfaces parameter services answer like rclpy's, a callback
+    can refuse a value (nothing changes), and /parameter_events reports declared and changed parameters."""
+    import threading
+
+    from mal_planner.ros.transport._common import value_from_msg, value_to_msg
+    from mal_planner.ros.transport._node_interfaces import list_parameters
+
+    assert list_parameters(["a", "b.c", "b.d.e"], [], 0) == (["a", "b.c", "b.d.e"], ["b", "b.d"])
+    assert list_parameters(["a", "b.c", "b.d.e"], [], 1) == (["a"], [])
+    assert list_parameters(["a", "b.c", "b.d.e"], ["b"], 1) == (["b.c"], ["b"])
+    with create_node("params_node", "atc", backend="cyclone") as server, \
+            create_node("param_caller", backend="cyclone", start_parameter_services=False) as caller:
+        server.declare_parameter("rate", 5.0, "update rate [Hz]")
+        server.declare_parameter("solver.tol", 1e-6)
+        server.add_on_set_parameters_callback(
+            lambda ps: next(((False, f"{p.name} must be > 0") for p in ps if p.value <= 0), (True, "")))
+        T = caller.types
+        events: list = []
+        caller.create_subscription("rcl_interfaces/msg/ParameterEvent", "/parameter_events", events.append, 100)
+        spinner = threading.Thread(target=server.spin, daemon=True)
+        spinner.start()
+
+        def call(srv: str, **fields):
+            cli = caller.create_client(f"rcl_interfaces/srv/{srv}", f"/atc/params_node/{srv_name(srv)}")
+            assert cli.wait_for_service(10.0)
+            return cli.call(T.srv(f"rcl_interfaces/srv/{srv}").Request(**fields), timeout_sec=10.0)
+
+        def param(name, value):
+            return T.msg("rcl_interfaces/msg/Parameter")(
+                name=name, value=value_to_msg(T.msg("rcl_interfaces/msg/ParameterValue"), value))
+
+        assert list(call("ListParameters").result.names) == ["rate", "solver.tol"]
+        assert [value_from_msg(v) for v in call("GetParameters", names=["rate", "solver.tol"]).values] == [5.0, 1e-6]
+        assert call("GetParameters", names=["rate", "nope"]).values == []  # rclpy: nothing if one is undeclared
+        assert list(call("GetParameterTypes", names=["rate", "nope"]).types) == [3, 0]
+        assert call("DescribeParameters", names=["rate"]).descriptors[0].description == "update rate [Hz]"
+        results = call("SetParameters", parameters=[param("rate", 10.0), param("rate", -1.0), param("rate", 1)]).results
+        assert [(r.successful, r.reason) for r in results] == [
+            (True, ""), (False, "rate must be > 0"),
+            (False, "Wrong parameter type, parameter {rate} is of type {double}, setting it to {integer} is not "
+                    "allowed.")]
+        atomic = call("SetParametersAtomically", parameters=[param("solver.tol", 1e-3), param("rate", 0.0)]).result
+        assert not atomic.successful and server.get_parameter("solver.tol").value == 1e-6  # all or nothing
+        assert server.get_parameter("rate").value == 10.0
+        assert spin_until(caller, lambda: any(p.name == "rate" for e in events for p in e.changed_parameters))
+        changed = [(p.name, value_from_msg(p.value)) for e in events for p in e.changed_parameters]
+        assert changed == [("rate", 10.0)] and all(e.node == "/atc/params_node" for e in events)
+        server.shutdown()
+        spinner.join(5)
+
+
+def srv_name(srv: str) -> str:
+    """``SetParametersAtomically`` -> ``set_parameters_atomically``."""
+    return "".join("_" + c.lower() if c.isupper() else c for c in srv).lstrip("_")
