@@ -84,3 +84,28 @@ node.shutdown(); server.shutdown()
     assert snip.wait_for_line("TYPE", 40) == "TYPE True"
     assert snip.wait_for_line("RESULT", 20) == "RESULT ok"
     snip.wait_for_line("TIMEOUT", 20)
+
+
+def test_rclpy_backend_logs_reach_rosout(rclpy_snippet) -> None:
+    """The node's Python log lines go to /rosout on rclpy as on the built-in backend (read by a built-in
+    subscriber with rcl's rosout QoS)."""
+    from mal_planner.ros.transport._common import QOS_ROSOUT
+
+    snip = rclpy_snippet("""
+import logging
+from mal_planner.ros.transport import create_node
+logging.basicConfig(level=logging.INFO)
+node = create_node("talker", "atc", backend="rclpy")
+node.create_timer(0.1, lambda: node.get_logger().warning("hello rosout"))
+print("ready", flush=True)
+node.spin()
+""")
+    snip.wait_for_line("ready", 30)
+    with create_node("rosout_listener", backend="cyclone", start_parameter_services=False) as node:
+        got: list = []
+        node.create_subscription("rcl_interfaces/msg/Log", "/rosout",
+                                 lambda m: got.append(m) if m.msg == "hello rosout" else None, QOS_ROSOUT)
+        deadline = time.monotonic() + 15
+        while not got and time.monotonic() < deadline:
+            node.spin_once(0.05)
+    assert got and got[0].name == "atc.talker" and got[0].level == 30

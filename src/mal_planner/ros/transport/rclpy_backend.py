@@ -168,6 +168,7 @@ class RclpyNode:
         self._rosout = RosoutHandler(node_fqn(name, namespace).strip("/").replace("/", "."),
                                      self.types.msg("rcl_interfaces/msg/Log"), self.time_msg, rosout.publish)
         self._log_targets: list[logging.Logger] = []
+        self.forward_logs(self._logger.logger)
         self._reentrant_group = ReentrantCallbackGroup()
         self._spin_lock = threading.Lock()
         self._executor_thread: int | None = None
