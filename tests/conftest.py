@@ -10,7 +10,7 @@ import time
 from pathlib import Path
 
 import pytest
-from dds_support import Snippet, dds_env, snippet  # noqa: F401  (fixtures for every module)
+from dds_support import dds_env, snippet, snippet_factory  # noqa: F401  (fixtures for every module)
 from ros2_env import SKIP_PREFIX, colcon_build_mal_msgs, ros2_env, skip_without_ros2
 
 BACKENDS = ("cyclone", "rclpy")
@@ -64,12 +64,5 @@ def backend_env(backend: str, dds_env: dict[str, str], request: pytest.FixtureRe
 @pytest.fixture
 def backend_snippet(backend_env: dict[str, str]):
     """Like ``snippet``, but the children run on the backend under test."""
-    started: list[Snippet] = []
+    yield from snippet_factory(backend_env)
 
-    def start(code: str) -> Snippet:
-        started.append(Snippet(code, backend_env))
-        return started[-1]
-
-    yield start
-    for snip in started:
-        snip.stop()

@@ -117,3 +117,16 @@ def coarse_params(extra: str = "") -> str:
         "    settle_time_s: 1.0\n"
         "    verify: false\n" + extra
     )
+
+
+def snippet_factory(env: dict[str, str]):
+    """Yield a function starting snippets in ``env``; stop them all afterwards (for fixtures)."""
+    started: list[Snippet] = []
+
+    def start(code: str) -> Snippet:
+        started.append(Snippet(code, env))
+        return started[-1]
+
+    yield start
+    for snip in started:
+        snip.stop()

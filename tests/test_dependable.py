@@ -10,6 +10,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from test_verification import straight_level
 
 from mal_planner.errors import InfeasibleRequest
 from mal_planner.initializer.schedule import check_request, make_schedule
@@ -17,7 +18,6 @@ from mal_planner.initializer.timing import earliest_landing_times, reachable_low
 from mal_planner.landing import LandingOptions
 from mal_planner.pipeline import Planner, PlanOptions
 from mal_planner.scenario import load_scenario, parse_scenario
-from mal_planner.trajectory import Trajectory
 from mal_planner.verification import verify
 
 COARSE = LandingOptions(mesh_tol=1e-4)
@@ -85,24 +85,13 @@ def test_partly_fixed_times_keep_the_fixed_and_space_the_rest(thesis) -> None:
     assert all(b - a >= sc.landing_spacing_s - 1e-9 for a, b in zip(times, times[1:], strict=False))
 
 
-def level(callsign: str, start, heading: float, duration: float, n_h: float = 0.0, n_v: float = 1.0,
-          dt: float = 0.25) -> Trajectory:
-    t = np.arange(0.0, duration + 1e-9, dt)
-    states = np.zeros((len(t), 5))
-    states[:, 0] = start[0] + V * t * math.cos(heading)
-    states[:, 1] = start[1] + V * t * math.sin(heading)
-    states[:, 2] = start[2]
-    states[:, 4] = heading
-    return Trajectory(callsign, t, states, np.tile([n_h, n_v], (len(t), 1)))
-
-
 def test_verification_accepts_nothing_below_the_separation(thesis) -> None:
     """Two parallel aircraft 0.2498 nm apart (five_aircraft passed with that before): refused."""
     for gap, ok in ((0.2498, False), (0.2502, True)):
         a, b = np.array([-1.0, 5.0, 0.2]), np.array([-1.0 + gap, 5.0, 0.2])
         sc = thesis.with_initial_states({"A1": np.array([*a, 0.0, -math.pi / 2]),
                                          "A2": np.array([*b, 0.0, -math.pi / 2])})
-        report = verify(sc, [level("A1", a, -math.pi / 2, 10.0), level("A2", b, -math.pi / 2, 10.0)])
+        report = verify(sc, [straight_level("A1", a, -math.pi / 2, 10.0), straight_level("A2", b, -math.pi / 2, 10.0)])
         broken = [r for r in report.reasons if "nm apart" in r]
         assert bool(broken) != ok, (gap, report.reasons)
 
@@ -112,7 +101,7 @@ def test_verification_checks_the_published_bank_angle_exactly(thesis) -> None:
     start = np.array([0.0, 5.0, 0.2])
     sc = thesis.with_initial_states({"A1": np.array([*start, 0.0, -math.pi / 2])})
     n_h = math.tan(math.radians(45.05))
-    tr = level("A1", start, -math.pi / 2, 2.0, n_h=n_h)
+    tr = straight_level("A1", start, -math.pi / 2, 2.0, controls=(n_h, 1.0))
     report = verify(sc, [tr])
     assert any("bank angle reaches 45.050 deg" in r for r in report.reasons), report.reasons
     assert report.aircraft[0].limit_violation_times_s

@@ -5,7 +5,7 @@ from __future__ import annotations
 import time
 
 import pytest
-from dds_support import Snippet, dds_env, unique_domain_id  # noqa: F401  (fixture)
+from dds_support import dds_env, snippet_factory, unique_domain_id  # noqa: F401  (fixture)
 from ros2_env import ros2_env, skip_without_ros2
 
 from mal_planner.ros.transport import create_node
@@ -17,16 +17,7 @@ pytestmark = [pytest.mark.usefixtures("dds_env")]
 def rclpy_snippet(dds_env: dict[str, str]):  # noqa: F811
     """Factory of snippets running with the sourced ROS 2 environment (stopped at teardown)."""
     skip_without_ros2()
-    env = ros2_env(dds_env)
-    started: list[Snippet] = []
-
-    def start(code: str) -> Snippet:
-        started.append(Snippet(code, env))
-        return started[-1]
-
-    yield start
-    for snip in started:
-        snip.stop()
+    yield from snippet_factory(ros2_env(dds_env))
 
 
 def test_second_node_honours_a_changed_domain_id(rclpy_snippet, dds_env) -> None:  # noqa: F811

@@ -133,7 +133,8 @@ class Planner:
     aircraft has passed the gate since). When a step fails, the next is tried, so a plan never gets stuck
     on a stale state: the warm replan, then a cold solve of the same order, then a fresh initializer; and
     where the schedule (not the scenario) fixed the landing times, a solve in which the optimizer chooses
-    them. Aircraft within ``landed_within_s`` of their last planned landing leave the plan quietly.
+    them. A first plan whose solve fails is tried once more from the initializer with another seed.
+    Aircraft within ``landed_within_s`` of their last planned landing leave the plan quietly.
     """
 
     def __init__(self, options: PlanOptions | None = None) -> None:
@@ -213,6 +214,7 @@ class Planner:
             attempts.append(("fresh initializer", self._fresh_initializer))
         else:
             attempts.append(("solve", self._cold_attempt))
+            attempts.append(("solve from another initializer seed", self._reseeded_attempt))
         free_fallback = opts.landing.fixed_landing_times and any(a.landing_time is None for a in scenario.aircraft)
         if free_fallback:
             attempts.append(("optimizer-chosen landing times", self._free_times_attempt))
@@ -262,6 +264,13 @@ class Planner:
     def _fresh_initializer(self, scenario: Scenario, start_time: float, deadline: Deadline) -> LandingResult:
         opts = self.options
         self._initial = plan_initial(scenario, opts.initializer, seed=opts.seed)
+        return self._cold_attempt(scenario, start_time, deadline)
+
+    def _reseeded_attempt(self, scenario: Scenario, start_time: float, deadline: Deadline) -> LandingResult:
+        """Another initial guess (IPOPT's infeasibility verdicts are local): the initializer with a new seed."""
+        opts = self.options
+        seed = None if opts.seed is None else opts.seed + 1000
+        self._initial = plan_initial(scenario, opts.initializer, seed=seed)
         return self._cold_attempt(scenario, start_time, deadline)
 
     def _free_times_attempt(self, scenario: Scenario, start_time: float, deadline: Deadline) -> LandingResult:

@@ -62,7 +62,8 @@ class AircraftCheck:
     gate_events: list[dict] = field(default_factory=list)
     runway_error: dict = field(default_factory=dict)
     limit_violation_times_s: list[float] = field(default_factory=list)
-    """Times at which the controls break a limit or the flown path leaves the airspace or misses the hole."""
+    """Times at which the controls break a limit, the flown path leaves the airspace or misses the hole, or (for
+    refining the mesh) the flown path drifts fastest from the published one when it drifts too far."""
 
 
 @dataclass
@@ -199,10 +200,15 @@ def verify(scenario: Scenario, trajectories: list[Trajectory], tol: Tolerances |
         ang_dev = float(np.max(np.abs(np.remainder(solved[:, 3:] - x[:, 3:] + np.pi, 2 * np.pi) - np.pi)))
         if pos_dev > tol.deviation_nm:
             fail((cs,), f"{cs}: re-integrated path deviates {pos_dev:.4g} nm from the plan")
+            # Refine where the deviation grows fastest: the mesh is least accurate there.
+            growth = np.diff(np.linalg.norm(solved[:, :3] - x[:, :3], axis=1)) / np.maximum(np.diff(t), 1e-9)
+            accuracy_times = t[np.argsort(growth)[-3:]].tolist()
+        else:
+            accuracy_times = []
         if ang_dev > tol.deviation_angle:
             fail((cs,), f"{cs}: re-integrated angles deviate {math.degrees(ang_dev):.3g} deg from the plan")
         chord = chord_error_bound(aircraft, t)
-        limit_times: list[float] = []
+        limit_times: list[float] = list(accuracy_times)
         # Airspace, with the chord error to spare (not at the given initial state, which may lie on a bound).
         spare = np.where(t > t[0], chord, 0.0)[:, None]
         below = scenario.airspace[:, 0] - x[:, :3] + spare
