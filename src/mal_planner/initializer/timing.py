@@ -1,0 +1,130 @@
+"""When can each aircraft land at the earliest, and which requests can never be met.
+
+Two numbers per aircraft, both in seconds from the initial states:
+
+* :func:`earliest_landing_time`: a turn-aware *estimate* used to order the aircraft and to schedule free
+  landing times. The horizontal path is a Dubins path (OMPL's ``DubinsStateSpace``) from the initial
+  position and heading to the gate (through the best point of the hole, with the gate's heading) and on
+  to the runway threshold with the runway's heading, flown with the level-turn radius at the bank limit,
+  ``R = V^2 / (g min(tan mu_max, n_h_max))``. When an obstacle-free polyline is known (the initializer's
+  shortest path), the detour it makes around obstacles is added.
+* :func:`reachable_lower_bound`: a *proof* of impossibility: the straight-line distance from the start
+  through the nearest point of the hole to the runway, flown at full speed. A fixed landing time below it
+  cannot be met by any trajectory.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Mapping
+
+import numpy as np
+
+from mal_planner.obstacles import Gate
+from mal_planner.scenario import Aircraft, Scenario
+
+HOLE_SAMPLES = 9
+"""Points across the hole tried for the gate passage (the best one is kept)."""
+
+
+def level_turn_radius(aircraft: Aircraft) -> float:
+    """Radius (nm) of a level turn at the bank limit (capped by the horizontal load-factor limit)."""
+    lim = aircraft.limits
+    n_h = min(math.tan(lim.bank_angle_max) * max(min(1.0, lim.n_v[1]), 1e-9), lim.n_h[1], -lim.n_h[0])
+    return aircraft.speed**2 / (aircraft.dynamics.gravity * n_h)
+
+
+def dubins_length(start: np.ndarray, start_heading: float, goal: np.ndarray, goal_heading: float,
+                  radius: float) -> float:
+    """Length of the shortest planar path with curvature <= 1/radius between two (x, y, heading) poses."""
+    from ompl import base as ob
+
+    space = ob.DubinsStateSpace(radius)
+    a, b = space.allocState(), space.allocState()
+    a.setXY(float(start[0]), float(start[1]))
+    a.setYaw(float(start_heading))
+    b.setXY(float(goal[0]), float(goal[1]))
+    b.setYaw(float(goal_heading))
+    return float(space.distance(a, b))
+
+
+def _hole_points(gate: Gate, count: int, margin: float = 0.0) -> np.ndarray:
+    """Points across the hole on the gate plane (at the hole's mid height), (count, 3)."""
+    (a_lo, a_hi), (b_lo, b_hi) = gate.bounds
+    ax_a, ax_b = gate.other_axes
+    pts = np.zeros((count, 3))
+    pts[:, gate.axis] = gate.position
+    pts[:, ax_a] = np.linspace(a_lo + margin, a_hi - margin, count) if a_hi - a_lo > 2 * margin else 0.5 * (a_lo + a_hi)
+    pts[:, ax_b] = 0.5 * (b_lo + b_hi)
+    return pts
+
+
+def _ahead_of(gate: Gate | None, aircraft: Aircraft) -> bool:
+    return gate is not None and float(gate.signed_distance(aircraft.position)) > 0.0
+
+
+def _nearest_hole_point(gate: Gate, point: np.ndarray) -> np.ndarray:
+    out = np.asarray(point, float).copy()
+    out[gate.axis] = gate.position
+    for (lo, hi), ax in zip(gate.bounds, gate.other_axes, strict=True):
+        out[ax] = min(max(out[ax], lo), hi)
+    return out
+
+
+def reachable_lower_bound(scenario: Scenario, aircraft: Aircraft) -> float:
+    """A landing time (s) no trajectory can beat: straight lines via the hole at full speed."""
+    start, goal = aircraft.position, scenario.runway_state[:3]
+    gate = scenario.gates[0] if scenario.gates else None
+    if not _ahead_of(gate, aircraft):
+        return float(np.linalg.norm(goal - start)) / aircraft.speed
+    assert gate is not None
+    # Each leg is at least the distance from its end to the (convex) hole: a true lower bound.
+    to_hole = float(np.linalg.norm(_nearest_hole_point(gate, start) - start))
+    hole_to_goal = float(np.linalg.norm(goal - _nearest_hole_point(gate, goal)))
+    return max(to_hole + hole_to_goal, float(np.linalg.norm(goal - start))) / aircraft.speed
+
+
+def dubins_path_length(scenario: Scenario, aircraft: Aircraft) -> tuple[float, float]:
+    """Turn-aware horizontal length (nm) to the runway (via the gate) and the straight-line length."""
+    radius = level_turn_radius(aircraft)
+    start, goal = aircraft.position, scenario.runway_state[:3]
+    heading0, heading_rw = float(aircraft.state0[4]), float(scenario.runway_state[4])
+    gate = scenario.gates[0] if scenario.gates else None
+    if not _ahead_of(gate, aircraft) or gate is None or gate.axis == 2:
+        straight = float(np.linalg.norm(goal - start))
+        return max(dubins_length(start, heading0, goal, heading_rw, radius), straight), straight
+    best, best_straight = math.inf, math.inf
+    for h in _hole_points(gate, HOLE_SAMPLES, margin=0.01 * min(hi - lo for lo, hi in gate.bounds)):
+        straight = float(np.linalg.norm(h - start) + np.linalg.norm(goal - h))
+        length = (dubins_length(start, heading0, h, gate.heading, radius)
+                  + dubins_length(h, gate.heading, goal, heading_rw, radius))
+        if length < best:
+            best, best_straight = max(length, straight), straight
+    return best, best_straight
+
+
+def earliest_landing_time(scenario: Scenario, aircraft: Aircraft, detour_nm: float = 0.0) -> float:
+    """Turn-aware estimate (s) of the earliest landing; ``detour_nm``: extra length around obstacles."""
+    length, _ = dubins_path_length(scenario, aircraft)
+    climb = abs(float(scenario.runway_state[2] - aircraft.position[2]))
+    length = math.hypot(length + max(detour_nm, 0.0), climb)
+    return max(length / aircraft.speed, reachable_lower_bound(scenario, aircraft))
+
+
+def earliest_landing_times(scenario: Scenario, shortest_paths: Mapping[str, np.ndarray] | None = None
+                           ) -> dict[str, float]:
+    """:func:`earliest_landing_time` of every aircraft (s from the initial states).
+
+    ``shortest_paths`` (callsign -> obstacle-free polyline to the runway, e.g. the initializer's) adds
+    each aircraft's detour around obstacles: its length minus the straight line via the hole.
+    """
+    out = {}
+    for ac in scenario.aircraft:
+        detour = 0.0
+        if shortest_paths is not None and ac.callsign in shortest_paths:
+            path = np.asarray(shortest_paths[ac.callsign], float)
+            poly = float(np.sum(np.linalg.norm(np.diff(path, axis=0), axis=1)))
+            _, straight = dubins_path_length(scenario, ac)
+            detour = max(poly - straight, 0.0)
+        out[ac.callsign] = earliest_landing_time(scenario, ac, detour)
+    return out
