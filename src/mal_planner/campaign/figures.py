@@ -92,5 +92,7 @@ def figure_failures(rows: Sequence[dict[str, str]], path: Path) -> Path:
 
 def write_figures(rows: Sequence[dict[str, str]], out_dir: Path) -> list[Path]:
     out_dir = Path(out_dir)
-    return [figure_success(rows, out_dir / "success_rate.png"), figure_stage_times(rows, out_dir / "stage_times.png"),
-            figure_solve_times(rows, out_dir / "solve_times.png"), figure_failures(rows, out_dir / "failure_classes.png")]
+    return [figure_success(rows, out_dir / "success_rate.png"),
+            figure_stage_times(rows, out_dir / "stage_times.png"),
+            figure_solve_times(rows, out_dir / "solve_times.png"),
+            figure_failures(rows, out_dir / "failure_classes.png")]

@@ -7,6 +7,7 @@ stays healthy. The peak resident memory is that child's own (``os.wait4``'s rusa
 
 from __future__ import annotations
 
+import contextlib
 import json
 import os
 import signal
@@ -35,10 +36,8 @@ def _wait(pid: int, timeout_s: float) -> tuple[int | None, Any, bool]:
             return os.waitstatus_to_exitcode(status), usage, timed_out
         if not timed_out and time.monotonic() > deadline:
             timed_out = True
-            try:
+            with contextlib.suppress(ProcessLookupError):
                 os.killpg(pid, signal.SIGKILL)
-            except ProcessLookupError:
-                pass
         time.sleep(POLL_S)
 
 

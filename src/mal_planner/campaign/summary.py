@@ -130,8 +130,8 @@ def summary_markdown(rows: Sequence[dict[str, str]], figures: Sequence[Path] = (
     memory = [m for r in rows if (m := as_float(r["peak_memory_mb"])) is not None]
     seps = [s for r in rows if r["status"] == "ok" and (s := as_float(r["min_separation_nm"])) is not None]
     lines += ["", "## Plans", "",
-              f"* mean landing delay against the initializer's times, verified plans: median {_fmt(_median(delays), 1)} s"
-              f" ({len(delays)} plans)",
+              "* mean landing delay against the initializer's times, verified plans: "
+              f"median {_fmt(_median(delays), 1)} s ({len(delays)} plans)",
               f"* smallest separation in a verified plan: {_fmt(min(seps) if seps else None, 3)} nm",
               f"* peak memory of a planning process: median {_fmt(_median(memory), 0)} MB, "
               f"max {_fmt(max(memory) if memory else None, 0)} MB"]

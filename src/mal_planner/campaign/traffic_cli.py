@@ -27,7 +27,8 @@ def aircraft_range(text: str) -> tuple[int, int]:
 def build_parser() -> argparse.ArgumentParser:
     parser = argparse.ArgumentParser(
         prog=PROG, description="Generate random arrival-traffic scenario files (arrival streams towards one runway, "
-                               "through a wall with a hole or around no-fly zones). The same seed gives the same files.")
+                               "through a wall with a hole or around no-fly zones). The same seed gives the same "
+                               "files.")
     parser.add_argument("--count", type=int, required=True, help="number of scenario files K")
     parser.add_argument("--aircraft", type=aircraft_range, required=True, help="aircraft per scenario: N or N1-N2")
     parser.add_argument("--seed", type=int, default=0, help="random seed (default: %(default)s)")
