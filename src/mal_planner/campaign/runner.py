@@ -47,9 +47,10 @@ def open_client(settings: EngineSettings):
     logging.getLogger("distributed").setLevel(max(logging.WARNING, log.getEffectiveLevel()))
     if settings.address:
         return Client(settings.address, timeout="30s")
-    # memory_limit=0: the worker's memory is small; the planning child has its own RLIMIT_AS.
+    # memory_limit=0: the worker's memory is small; the planning child has its own RLIMIT_AS. Any free port for
+    # the scheduler's HTTP server, so that several campaigns can run on one machine.
     cluster = LocalCluster(n_workers=settings.workers, threads_per_worker=1, processes=True, memory_limit=0,
-                           dashboard_address=None, silence_logs=logging.ERROR)
+                           dashboard_address=":0", silence_logs=logging.ERROR)
     return Client(cluster)
 
 
