@@ -14,8 +14,8 @@ from pathlib import Path
 
 import pytest
 
-from mal_planner.campaign.cli import main
 from mal_planner.campaign.child import FAULTS_ENV
+from mal_planner.campaign.cli import main
 from mal_planner.campaign.metrics import ray_clearance_nm
 from mal_planner.campaign.outcome import classify
 from mal_planner.campaign.results import COLUMNS, read_rows
