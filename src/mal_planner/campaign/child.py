@@ -24,6 +24,19 @@ from typing import Any
 FAULTS_ENV = "MAL_CAMPAIGN_TEST_FAULTS"
 
 
+def die_with_parent() -> None:
+    """Linux: get SIGKILL when the engine worker that started this process dies (e.g. the campaign is
+    interrupted), so no planning process outlives its campaign."""
+    try:
+        import ctypes
+
+        ctypes.CDLL("libc.so.6", use_errno=True).prctl(1, int(signal.SIGKILL))  # PR_SET_PDEATHSIG
+    except (OSError, AttributeError):
+        return
+    if os.getppid() == 1:  # the parent died before the call
+        os._exit(1)
+
+
 def limit_memory(limit_bytes: int | None) -> None:
     if limit_bytes:
         resource.setrlimit(resource.RLIMIT_AS, (limit_bytes, limit_bytes))
@@ -97,6 +110,7 @@ def plan_row(job: dict[str, Any]) -> dict[str, Any]:
 
 def main(argv: list[str] | None = None) -> int:
     job_path, out_path = (argv if argv is not None else sys.argv[1:])[:2]
+    die_with_parent()
     job = json.loads(Path(job_path).read_text(encoding="utf-8"))
     limit_memory(job.get("memory_limit_bytes"))
     logging.basicConfig(level=logging.INFO, stream=sys.stderr,

@@ -178,8 +178,8 @@ def main(argv: list[str] | None = None) -> int:
     summary = write_summary(out)
     rows = read_rows(out / "results.csv")
     ok = sum(r["status"] == "ok" for r in rows)
-    print(f"{PROG}: {len(jobs)} planned in {time.perf_counter() - t0:.0f} s; {ok}/{len(rows)} verified; "
-          f"wrote {out / 'results.csv'}, {summary}")
+    print(f"{PROG}: {len(rows) - len(done)} of {len(jobs)} planned in {time.perf_counter() - t0:.0f} s; "
+          f"{ok}/{len(rows)} verified in the table; wrote {out / 'results.csv'}, {summary}")
     return 130 if interrupted else 0
 
 
