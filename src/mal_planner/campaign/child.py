@@ -91,14 +91,20 @@ def plan_row(job: dict[str, Any]) -> dict[str, Any]:
 
     row: dict[str, Any] = {"seed": job["options"]["seed"]}
     fault = injected_fault(job["source"])
+    t0: float | None = None
     try:
         if fault:
             apply_fault(fault, job.get("memory_limit_bytes"))
         scenario = scenario_from_text(job["text"], job["source"])
         row.update(scenario_columns(scenario))
+        t0 = time.perf_counter()
         result = Planner(to_plan_options(job["options"])).plan(scenario, reuse=False)
     except (Exception, MemoryError) as exc:  # every failure becomes a row; the campaign goes on
         outcome = classify(error=exc)
+        if t0 is not None:  # the pipeline ran until it raised
+            row["total_s"] = time.perf_counter() - t0
+            if outcome.failure_class == "initializer_failed":
+                row["initializer_s"] = row["total_s"]
         logging.getLogger("mal_planner.campaign").warning("%s: %s", job["source"], outcome.reason)
     else:
         row.update(plan_columns(scenario, result))

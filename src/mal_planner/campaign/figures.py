@@ -66,12 +66,15 @@ def figure_solve_times(rows: Sequence[dict[str, str]], path: Path) -> Path:
     plt = _pyplot()
     fig, (ax1, ax2) = plt.subplots(1, 2, figsize=(9, 3.5))
     groups = {"verified": [r for r in rows if r["status"] == "ok"], "failed": [r for r in rows if r["status"] != "ok"]}
+    every = [t for r in rows if (t := as_float(r["process_s"])) is not None]
+    bins = np.histogram_bin_edges(every, bins=20) if every else 20
     for label, sel in groups.items():
         times = np.sort([t for r in sel if (t := as_float(r["process_s"])) is not None])
         if times.size == 0:
             continue
-        ax1.hist(times, bins=20, alpha=0.6, label=f"{label} ({times.size})")
-        ax2.step(times, np.arange(1, times.size + 1) / times.size, where="post", label=label)
+        ax1.hist(times, bins=bins, alpha=0.6, label=f"{label} ({times.size})")
+        ax2.step(np.concatenate([[times[0]], times]), np.arange(times.size + 1) / times.size, where="post",
+                 label=label)
     ax1.set(xlabel="wall time per scenario (s)", ylabel="scenarios", title="Histogram")
     ax2.set(xlabel="wall time per scenario (s)", ylabel="fraction", title="ECDF", xscale="log")
     for ax in (ax1, ax2):
