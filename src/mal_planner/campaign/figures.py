@@ -56,6 +56,14 @@ def figure_stage_times(rows: Sequence[dict[str, str]], path: Path) -> Path:
         if growth:
             grid = np.linspace(ns.min(), ns.max(), 50)
             ax.loglog(grid, growth.coefficient * grid ** growth.exponent, "--", color=line.get_color(), lw=0.8)
+    from matplotlib.ticker import FormatStrFormatter, NullFormatter
+
+    ns_all = sorted({n for stage in STAGES for n in stage_medians(rows, stage)})
+    if ns_all:
+        ax.set_xticks(ns_all)
+    ax.xaxis.set_major_formatter(FormatStrFormatter("%d"))
+    ax.xaxis.set_minor_formatter(NullFormatter())
+    ax.yaxis.set_major_formatter(FormatStrFormatter("%g"))
     ax.set(xlabel="aircraft N", ylabel="median time (s)", title="Time per stage (dashed: fitted c N^k)")
     ax.grid(True, which="both", alpha=0.3)
     ax.legend(fontsize=8)
