@@ -18,7 +18,7 @@ from mal_planner.campaign.child import FAULTS_ENV
 from mal_planner.campaign.cli import main
 from mal_planner.campaign.metrics import ray_clearance_nm
 from mal_planner.campaign.outcome import classify
-from mal_planner.campaign.results import COLUMNS, read_rows
+from mal_planner.campaign.results import COLUMNS, ResultsTable, read_rows
 from mal_planner.campaign.traffic import TrafficSpec, generate_one
 from mal_planner.errors import FAILURE_CLASSES, InfeasibleRequest, InvalidInput
 from mal_planner.initializer import PlanningFailed
@@ -156,3 +156,20 @@ def test_ray_clearance_is_metric_for_spheres_and_box_faces() -> None:
     box = Superquadric("b", (0.0, 3.0, 0.0), (1.0, 0.0005, 0.15), 50)
     assert ray_clearance_nm(sphere, [[3.0, 0.0, 0.0], [0.0, 0.5, 0.0]]) == pytest.approx([2.0, -0.5])
     assert ray_clearance_nm(box, [[0.0, 3.5, 0.0], [2.0, 3.0, 0.0]]) == pytest.approx([0.4995, 1.0], rel=1e-3)
+
+
+def test_a_row_cut_short_by_an_interruption_is_dropped(tmp_path: Path) -> None:
+    path = tmp_path / "results.csv"
+    with ResultsTable(path) as table:
+        table.append({"file": "/a.yaml", "status": "ok", "verified": True, "worker": "h:1"})
+    with path.open("a") as f:
+        f.write("/b.yaml,b,2,wall")  # the process died in the middle of a write
+    with ResultsTable(path) as table:
+        table.append({"file": "/c.yaml", "status": "failed", "failure_class": "timeout", "worker": "h:2"})
+    rows = read_rows(path)
+    assert [r["file"] for r in rows] == ["/a.yaml", "/c.yaml"] and rows[1]["failure_class"] == "timeout"
+
+
+def test_summary_only_needs_a_table(tmp_path: Path, capsys) -> None:
+    assert main(["--out", str(tmp_path), "--summary-only"]) == 2
+    assert "no such campaign table" in capsys.readouterr().err
