@@ -4,6 +4,7 @@ distribution, failure classes. Computed from the rows of results.csv only."""
 from __future__ import annotations
 
 import math
+import re
 from collections import Counter
 from collections.abc import Sequence
 from dataclasses import dataclass
@@ -68,7 +69,7 @@ def failure_counts(rows: Sequence[dict[str, str]]) -> dict[str, int]:
 def typical_reasons(rows: Sequence[dict[str, str]], failure_class: str, k: int = 2) -> list[tuple[str, int]]:
     """The most common reasons of a class (numbers stripped so that similar reasons count together)."""
     def shape(reason: str) -> str:
-        return " ".join("#" if any(c.isdigit() for c in w) else w for w in reason.split())[:120]
+        return re.sub(r"\d+(\.\d+)?", "#", reason)[:120]
 
     counter = Counter(shape(r["reason"]) for r in rows if r["failure_class"] == failure_class)
     return counter.most_common(k)
