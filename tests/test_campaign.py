@@ -26,7 +26,7 @@ from mal_planner.obstacles import Superquadric
 from mal_planner.scenario import ScenarioError
 
 REAL = [f"real-{i}.yaml" for i in range(3)]
-FAULTS = {"dies.yaml": "exit", "hog.yaml": "oom"}
+FAULTS = {"dies.yaml": "exit", "segfaults.yaml": "segfault", "raises.yaml": "raise", "hog.yaml": "oom"}
 
 
 @pytest.fixture(scope="module")
@@ -57,6 +57,9 @@ def test_every_scenario_gets_one_row_with_its_class(campaign: dict) -> None:
     assert header.split(",") == list(COLUMNS)
     assert rows["corrupt.yaml"]["failure_class"] == "invalid_input" and "invalid YAML" in rows["corrupt.yaml"]["reason"]
     assert rows["dies.yaml"]["failure_class"] == "crash" and "exited with code 3" in rows["dies.yaml"]["reason"]
+    assert rows["segfaults.yaml"]["failure_class"] == "crash" and "SIGSEGV" in rows["segfaults.yaml"]["reason"]
+    assert rows["raises.yaml"]["failure_class"] == "crash"
+    assert rows["raises.yaml"]["reason"] == "RuntimeError: injected fault"
     assert rows["hog.yaml"]["failure_class"] == "out_of_memory" and "MemoryError" in rows["hog.yaml"]["reason"]
     for row in rows.values():
         assert row["failure_class"] in ("", *FAILURE_CLASSES) and row["reason"] and "\n" not in row["reason"]
@@ -84,14 +87,15 @@ def test_real_runs_report_timings_iterations_and_plan_metrics(campaign: dict) ->
 def test_summary_figures_and_record(campaign: dict) -> None:
     out = campaign["out"]
     summary = (out / "summary.md").read_text()
-    assert "6 scenarios" in summary and "| 2 | 5 |" in summary  # N = 2: five scenarios (the corrupt one has no N)
-    for cls in ("invalid_input", "crash", "out_of_memory"):
+    assert "8 scenarios" in summary and "| 2 | 7 |" in summary  # N = 2: seven scenarios (the corrupt one has no N)
+    assert "| crash | 3 |" in summary
+    for cls in ("invalid_input", "out_of_memory"):
         assert f"| {cls} | 1 |" in summary
     for name in ("success_rate", "stage_times", "solve_times", "failure_classes"):
         assert (out / f"{name}.png").stat().st_size > 5_000 and f"({name}.png)" in summary
     record = json.loads((out / "campaign.json").read_text())
     assert record["plan_options"]["seed"] == 0 and record["engine"]["timeout_s"] == 150
-    assert len(record["scenarios"]) == 6
+    assert len(record["scenarios"]) == 8
     (out / "summary.md").unlink()
     assert main(["--out", str(out), "--summary-only"]) == 0
     assert (out / "summary.md").read_text() == summary
