@@ -9,6 +9,7 @@ from __future__ import annotations
 
 import logging
 import os
+import uuid
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 from pathlib import Path
@@ -83,9 +84,10 @@ def run_campaign(jobs: Sequence[ScenarioJob], options: dict[str, Any], settings:
              len(client.scheduler_info().get("workers", {})))
     try:
         futures = {}
+        token = uuid.uuid4().hex[:8]  # task keys unique to this campaign: a shared cluster must not reuse results
         for i, job in enumerate(jobs):
             future = client.submit(run_isolated, job.source, job.text, options, settings.timeout_s,
-                                   settings.memory_limit_bytes, key=f"plan-{i:05d}-{Path(job.source).stem}",
+                                   settings.memory_limit_bytes, key=f"plan-{token}-{i:05d}-{Path(job.source).stem}",
                                    pure=False, retries=0)
             futures[future] = job
         failed = 0
