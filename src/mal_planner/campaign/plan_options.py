@@ -4,7 +4,10 @@ from __future__ import annotations
 
 import argparse
 from dataclasses import replace
-from typing import Any
+from typing import TYPE_CHECKING, Any
+
+if TYPE_CHECKING:
+    from mal_planner.pipeline import PlanOptions
 
 DEFAULTS: dict[str, Any] = {"initializer": "multi-rrt", "seed": 0, "guess": "initializer",
                             "free_landing_times": False, "mesh_tol": 1e-6, "refine": True}
@@ -43,8 +46,8 @@ def check_options(options: dict[str, Any]) -> str | None:
     return None
 
 
-def to_plan_options(options: dict[str, Any]):  # -> PlanOptions (imported lazily: CasADi loads slowly)
-    """The pipeline's PlanOptions, built exactly as mal-plan builds them."""
+def to_plan_options(options: dict[str, Any]) -> PlanOptions:
+    """The pipeline's PlanOptions, built exactly as mal-plan builds them (imported here: CasADi loads slowly)."""
     from mal_planner.landing import LandingOptions
     from mal_planner.pipeline import PlanOptions
 

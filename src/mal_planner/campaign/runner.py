@@ -13,11 +13,14 @@ import uuid
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 from mal_planner.campaign.isolation import run_isolated
 from mal_planner.campaign.outcome import one_line
 from mal_planner.campaign.results import ResultsTable
+
+if TYPE_CHECKING:
+    from distributed import Client
 
 log = logging.getLogger("mal_planner.campaign")
 
@@ -41,7 +44,7 @@ class EngineSettings:
     memory_limit_bytes: int | None = 4 * 2**30
 
 
-def open_client(settings: EngineSettings):
+def open_client(settings: EngineSettings) -> Client:
     """A Dask client on the given scheduler, or on a new local cluster of single-threaded worker processes."""
     from distributed import Client, LocalCluster
 
@@ -55,7 +58,7 @@ def open_client(settings: EngineSettings):
     return Client(cluster)
 
 
-def close_client(client) -> None:
+def close_client(client: Client) -> None:
     cluster = getattr(client, "cluster", None)
     client.close()
     if cluster is not None:
