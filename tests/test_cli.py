@@ -40,8 +40,9 @@ def test_full_run_reproduces_the_thesis(tmp_path: Path, capsys) -> None:
     assert doc["verification"]["pairs"] and doc["verification"]["verified"] is True
     report = (tmp_path / "report.md").read_text()
     assert "Table 6-1" in report and "**verified: true**" in report
-    for name in ("paths_3d", "yz_view", "x", "y", "z", "gamma", "heading", "controls_A1", "min_distance"):
-        assert (tmp_path / f"{name}.png").exists(), name
+    for name in ("overview.png", "paths_3d.png", "yz_view.png", "states.png", "controls.png", "separation.png",
+                 "plan.html"):
+        assert (tmp_path / name).exists(), name
 
 
 @pytest.mark.parametrize(

@@ -7,9 +7,9 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from mal_planner.initializer.planners import path_length
 from mal_planner.initializer.sequencer import InitialPlan, plan_initial
-from mal_planner.scenario import load_scenario
+from mal_planner.initializer.timing import dubins_path_length
+from mal_planner.scenario import load_scenario, parse_scenario
 
 SCENARIOS = Path(__file__).resolve().parents[1] / "scenarios"
 
@@ -34,16 +34,24 @@ def check_plan(scenario, plan: InitialPlan) -> None:
     trs = plan.trajectories
     assert sorted(tr.callsign for tr in trs) == sorted(ac.callsign for ac in scenario.aircraft)
     assert [tr.order for tr in trs] == list(range(1, len(trs) + 1))
-    direct = [path_length(tr.direct_path) for tr in trs]
-    assert direct == sorted(direct), "landing order must follow the direct path length"
-    assert trs[0].waypoint is None and np.array_equal(trs[0].waypoints, trs[0].direct_path)
+    schedule = plan.schedule
+    assert schedule is not None and list(schedule.order) == [tr.callsign for tr in trs]
     for prev, tr in zip(trs[:-1], trs[1:], strict=True):
-        gap = tr.landing_time - prev.landing_time
-        assert scenario.landing_spacing_s - 1e-9 <= gap <= scenario.max_landing_spacing_s + 1e-9
-        assert tr.waypoint is not None
-        i = tr.waypoint_index
-        np.testing.assert_array_equal(tr.waypoints[i], tr.waypoint)
-        assert tr.times[i] * tr.speed > 0.5 * tr.path_length
+        assert tr.scheduled_time - prev.scheduled_time >= scenario.landing_spacing_s - 1e-9
+    for tr in trs:
+        ac = scenario.aircraft_by_callsign(tr.callsign)
+        if ac.landing_time is not None:
+            assert tr.scheduled_time == ac.landing_time
+        else:
+            assert tr.scheduled_time >= schedule.earliest[tr.callsign]
+        dubins, straight = dubins_path_length(scenario, ac)
+        flown = (tr.path_length + dubins - straight) / ac.speed  # the turns lengthen the polyline
+        if tr.waypoint is None:
+            np.testing.assert_array_equal(tr.waypoints, tr.direct_path)
+            assert flown <= tr.scheduled_time + 5.0 + 1e-9
+        else:
+            np.testing.assert_array_equal(tr.waypoints[tr.waypoint_index], tr.waypoint)
+            assert abs(flown - tr.scheduled_time) <= 5.0 + 1e-9
     for tr in trs:
         ac = scenario.aircraft_by_callsign(tr.callsign)
         np.testing.assert_array_equal(tr.waypoints[0], ac.position)
@@ -108,3 +116,45 @@ def test_no_fly_zones_avoided():
             dense = np.concatenate([a + s * (b - a) for a, b in zip(path[:-1], path[1:], strict=True)])
             for ob in scenario.obstacles:
                 assert not ob.contains(dense).any(), f"{tr.callsign} enters {ob.name}"
+
+
+def test_fixed_times_in_another_order_set_the_order(thesis):
+    """Landing order follows fixed landing times, even when they are not nearest-first."""
+    times = {"A1": 185.0, "A2": 170.0, "A3": 200.0}
+    scenario = _with_landing_times(thesis, times)
+    plan = plan_initial(scenario, "multi-rrt", seed=0)
+    check_plan(scenario, plan)
+    assert [tr.callsign for tr in plan.trajectories] == ["A2", "A1", "A3"]
+
+
+def test_free_times_first_come_first_served(thesis):
+    """Without fixed times the order follows the turn-aware earliest landing and the minimum spacing."""
+    scenario = _with_landing_times(thesis, {})
+    plan = plan_initial(scenario, "multi-rrt", seed=0)
+    check_plan(scenario, plan)
+    earliest = plan.schedule.earliest
+    assert [tr.callsign for tr in plan.trajectories] == sorted(earliest, key=earliest.get)
+
+
+def test_wall_close_to_the_runway_two_aircraft():
+    """The thesis's "first leg > half" rule left no waypoint when the wall is near the runway."""
+    scenario = load_scenario(SCENARIOS / "thesis.yaml")
+    data = scenario.config.model_dump(mode="json", exclude_none=True)
+    data["aircraft"] = [{**a, "landing_time": None} for a in data["aircraft"][:2]]
+    for a in data["aircraft"]:
+        a.pop("landing_time")
+    data["obstacles"] = [{"type": "wall_with_hole", "name": "wall", "axis": "y", "position": 0.8, "thickness": 0.001,
+                          "span": {"x": [-3, 3], "z": [0, 0.3]}, "hole": {"x": [-0.5, 0.5], "z": [0.02, 0.12]}}]
+    data["gates"] = []
+    scenario = parse_scenario(data)
+    plan = plan_initial(scenario, "multi-rrt", seed=0)
+    check_plan(scenario, plan)
+
+
+def _with_landing_times(scenario, times: dict[str, float]):
+    data = scenario.config.model_dump(mode="json", exclude_none=True)
+    for a in data["aircraft"]:
+        a.pop("landing_time", None)
+        if a["callsign"] in times:
+            a["landing_time"] = times[a["callsign"]]
+    return parse_scenario(data)

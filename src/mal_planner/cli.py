@@ -33,7 +33,10 @@ def build_parser() -> argparse.ArgumentParser:
                         help="let the optimizer choose landing times (minimum spacing from the scenario)")
     parser.add_argument("--mesh-tol", type=float, default=1e-6, help="mesh error tolerance (default: %(default)s)")
     parser.add_argument("--no-refine", action="store_true", help="solve on the initial mesh only")
-    parser.add_argument("--no-figures", action="store_true", help="skip the PNG figures")
+    parser.add_argument("--figures", choices=["none", "png", "html", "all"], default="all",
+                        help="figures written after the result: PNGs, the interactive plan.html, both or none "
+                             "(default: %(default)s)")
+    parser.add_argument("--no-figures", dest="figures", action="store_const", const="none", help=argparse.SUPPRESS)
     parser.add_argument("-q", "--quiet", action="store_true", help="only print the summary")
     parser.add_argument("-v", "--verbose", action="store_true", help="debug logging")
     return parser
@@ -51,7 +54,7 @@ def main(argv: list[str] | None = None) -> int:
     # Imported after argument parsing: CasADi and OMPL take a moment to load.
     from mal_planner.initializer import PlanningFailed, known_specs
     from mal_planner.pipeline import Planner, PlanOptions
-    from mal_planner.report import summary_table, write_outputs
+    from mal_planner.report import summary_table, write_figures, write_outputs
 
     if args.initializer not in known_specs():
         print(f"mal-plan: error: --initializer: unknown planner {args.initializer!r} "
@@ -68,12 +71,13 @@ def main(argv: list[str] | None = None) -> int:
         print(f"mal-plan: error: {args.scenario}: initializer failed: {exc}", file=sys.stderr)
         return 1
     out_dir = args.out or Path("out") / scenario.name
-    written = write_outputs(result, out_dir, figures=not args.no_figures)
+    written = write_outputs(result, out_dir, figures="none")
     print(f"{scenario.name}: {len(scenario.aircraft)} aircraft, landing order {' -> '.join(result.order)} "
           f"({time.perf_counter() - t0:.1f} s)")
-    print(summary_table(result))
+    print(summary_table(result), flush=True)
+    written += write_figures(out_dir / "plan.json", out_dir, args.figures)
     print(f"wrote {len(written)} files to {out_dir}/ (plan.json, report.md"
-          f"{', figures' if not args.no_figures else ''})")
+          f"{'' if args.figures == 'none' else ', figures: ' + args.figures})")
     if result.landing is not None and not result.optimized:
         return 1
     if result.verification is not None and not result.verification.verified:

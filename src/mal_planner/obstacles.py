@@ -98,6 +98,10 @@ class Superquadric:
         hits[idx] = hit
         return hits
 
+    def inflated(self, margin: float) -> Superquadric:
+        """The same shape with every semi-axis longer by ``margin`` (nm): a safety margin around it."""
+        return Superquadric(self.name, self.center, tuple(a + margin for a in self.semi_axes), self.p)
+
     def bounding_box(self) -> np.ndarray:
         """(3, 2) array of [min, max] per axis."""
         c, s = np.asarray(self.center), np.asarray(self.semi_axes)

@@ -4,10 +4,14 @@ from __future__ import annotations
 
 import logging
 import time
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 
 import numpy as np
 
+from mal_planner.deadline import Deadline
+from mal_planner.errors import FailureClass
+from mal_planner.initializer.planners import PlanningFailed
+from mal_planner.initializer.schedule import check_request
 from mal_planner.initializer.sequencer import InitialPlan, plan_initial
 from mal_planner.landing import LandingOptions, LandingResult
 from mal_planner.landing.solve import LandingOptimizer, make_guesses, shift_guesses
@@ -29,6 +33,10 @@ class PlanOptions:
     tolerances: Tolerances = field(default_factory=Tolerances)
     refinement_rounds: int = 3
     """Re-solves with a locally refined mesh where the verification finds a path constraint broken."""
+    time_limit_s: float | None = None
+    """Wall-clock limit of one plan; when it runs out the best result so far is returned (None: no limit)."""
+    landed_within_s: float = 3.0
+    """On a replan, aircraft this close to their last planned landing leave the plan."""
 
 
 @dataclass
@@ -41,10 +49,34 @@ class PlanResult:
     timings: dict[str, float]
     start_time: float = 0.0
     """Clock time of the initial states; every time in the result is relative to it."""
+    timed_out: bool = False
+    """The time limit ran out (the result is the best found until then)."""
 
     @property
     def optimized(self) -> bool:
         return self.landing is not None and self.landing.success
+
+    @property
+    def verified(self) -> bool:
+        return self.verification is not None and self.verification.verified
+
+    @property
+    def failure(self) -> tuple[FailureClass, str] | None:
+        """Why this result is not a verified plan, as (failure class, one-line reason); None if it is.
+
+        A run without the optimizer (``optimize=False``) or without verification is not a failure.
+        """
+        if not self.options.optimize:
+            return None
+        if self.landing is None or not self.landing.success:
+            status = self.landing.status if self.landing is not None else "not run"
+            return ("timeout" if self.timed_out else "optimizer_failed"), f"optimizer: {status}"
+        if self.verification is None:
+            return None if not self.options.verify else ("timeout", "time limit reached before the verification")
+        if not self.verification.verified:
+            reason = "; ".join(self.verification.reasons[:3])
+            return ("timeout" if self.timed_out else "verification_failed"), reason
+        return None
 
     @property
     def order(self) -> list[str]:
@@ -98,13 +130,15 @@ class Planner:
     A replan (same aircraft, obstacles and gates as the last successful plan) skips the initializer: the
     previous optimal trajectories, shifted to the new start time, are the initial guess and keep their
     absolute landing times; the cached NLP is reused unless the order of the events changed (e.g. an
-    aircraft has passed the gate since).
+    aircraft has passed the gate since). When a step fails, the next is tried, so a plan never gets stuck
+    on a stale state: the warm replan, then a cold solve of the same order, then a fresh initializer; and
+    where the schedule (not the scenario) fixed the landing times, a solve in which the optimizer chooses
+    them. Aircraft within ``landed_within_s`` of their last planned landing leave the plan quietly.
     """
 
     def __init__(self, options: PlanOptions | None = None) -> None:
         self.options = options or PlanOptions()
         self._optimizer: LandingOptimizer | None = None
-        self._key: tuple | None = None
         self.last: PlanResult | None = None
 
     def plan(self, scenario: Scenario, reuse: bool = True, start_time: float = 0.0,
@@ -112,65 +146,140 @@ class Planner:
         """Plan ``scenario`` whose initial states hold at ``start_time`` (any clock, in seconds).
 
         ``initial`` supplies the initializer's result instead of running it (e.g. one computed before).
+        Raises :class:`InfeasibleRequest` for requests no plan can meet (before any expensive work) and
+        :class:`PlanningFailed` when the initializer finds no path.
         """
         opts = self.options
-        scenario = inside_airspace(scenario)
+        deadline = Deadline(opts.time_limit_s)
+        scenario = self._without_landed(inside_airspace(scenario), start_time)
+        check_request(scenario, opts.landing.margins.hole_nm)
         timings: dict[str, float] = {}
         last = self.last
-        key = tuple(sorted(a.callsign for a in scenario.aircraft)), scenario.obstacles, scenario.gates
-        replan = (reuse and opts.optimize and last is not None and last.landing is not None and self._key == key
-                  and self._optimizer is not None and start_time >= last.start_time)
         t0 = time.perf_counter()
-        if initial is not None:
-            replan = False
-        elif replan:
+        warm = initial is None and reuse and opts.optimize and self._can_warm_start(scenario, start_time)
+        if warm:
             assert last is not None
             initial = last.initial
             log.info("replanning %.1f s after the previous plan (warm start)", start_time - last.start_time)
-        else:
+        elif initial is None:
             log.info("initializer %s (seed %s) on %d aircraft", opts.initializer, opts.seed, len(scenario.aircraft))
             initial = plan_initial(scenario, opts.initializer, seed=opts.seed)
         timings["initializer_s"] = time.perf_counter() - t0
         landing = None
         if opts.optimize:
             t1 = time.perf_counter()
-            if replan:
-                assert last is not None and last.landing is not None and self._optimizer is not None
-                guesses = shift_guesses(last.landing, start_time - last.start_time)
-                if self._optimizer.accepts(scenario, guesses):
-                    landing = self._optimizer.solve(scenario, warm=last.landing, guesses=guesses)
-                else:
-                    log.info("the order of gate passages and landings changed: new NLP")
-                    self._optimizer = LandingOptimizer(scenario, guesses, opts.landing)
-                    landing = self._optimizer.solve(scenario)
-            else:
-                self._optimizer = LandingOptimizer(scenario, make_guesses(scenario, initial, opts.landing),
-                                                   opts.landing)
-                self._key = key
-                landing = self._optimizer.solve(scenario)
+            landing = self._optimize(scenario, initial, warm, start_time, deadline)
             timings["optimizer_s"] = time.perf_counter() - t1
         report = None
         if landing is not None and landing.success and opts.verify:
-            landing, report = self._verify_and_refine(scenario, landing, timings)
-        result = PlanResult(scenario, opts, initial, landing, report, timings, start_time)
-        if result.optimized:
+            landing, report = self._verify_and_refine(scenario, landing, timings, deadline)
+        result = PlanResult(scenario, opts, initial, landing, report, timings, start_time,
+                            timed_out=deadline.expired())
+        if result.optimized and (report is None or report.verified):
             self.last = result
         return result
 
+    def _can_warm_start(self, scenario: Scenario, start_time: float) -> bool:
+        last = self.last
+        if last is None or last.landing is None or self._optimizer is None or start_time < last.start_time:
+            return False
+        return (_key(last.scenario) == _key(scenario) and last.scenario.obstacles == scenario.obstacles
+                and last.scenario.gates == scenario.gates)
 
-    def _verify_and_refine(self, scenario: Scenario, landing: LandingResult, timings: dict[str, float]
-                           ) -> tuple[LandingResult, VerificationReport]:
+    def _without_landed(self, scenario: Scenario, start_time: float) -> Scenario:
+        """Drop the aircraft whose last planned landing is (nearly) over: they leave the plan quietly."""
+        last = self.last
+        if last is None or not last.optimized:
+            return scenario
+        landed = [cs for cs, t in last.landing_times().items()
+                  if last.start_time + t - start_time < self.options.landed_within_s]
+        keep = tuple(a for a in scenario.aircraft if a.callsign not in landed)
+        if landed and keep and len(keep) < len(scenario.aircraft):
+            log.info("%s landed (or about to): left out of the plan", ", ".join(sorted(landed)))
+            return replace(scenario, aircraft=keep)
+        return scenario
+
+    def _optimize(self, scenario: Scenario, initial: InitialPlan, warm: bool, start_time: float,
+                  deadline: Deadline) -> LandingResult | None:
+        """Solve, falling back step by step (see the class docstring); None if nothing was tried."""
+        opts = self.options
+        attempts: list[tuple[str, object]] = []
+        if warm:
+            attempts.append(("warm replan", self._warm_attempt))
+            attempts.append(("cold solve of the same order", self._cold_same_order))
+            attempts.append(("fresh initializer", self._fresh_initializer))
+        else:
+            attempts.append(("solve", self._cold_attempt))
+        free_fallback = opts.landing.fixed_landing_times and any(a.landing_time is None for a in scenario.aircraft)
+        if free_fallback:
+            attempts.append(("optimizer-chosen landing times", self._free_times_attempt))
+        landing = None
+        self._initial = initial
+        for name, attempt in attempts:
+            if deadline.expired():
+                log.warning("time limit reached before the %s", name)
+                break
+            try:
+                candidate = attempt(scenario, start_time, deadline)  # type: ignore[operator]
+            except (PlanningFailed, ValueError, KeyError, IndexError, RuntimeError) as exc:
+                log.warning("%s failed: %s", name, " ".join(str(exc).split()) or type(exc).__name__)
+                continue
+            if candidate is None:
+                continue
+            landing = candidate if landing is None or candidate.success or not landing.success else landing
+            if candidate.success:
+                break
+            log.warning("%s: %s; trying the next fallback", name, candidate.status)
+        return landing
+
+    def _new_optimizer(self, scenario: Scenario, guesses, landing_options: LandingOptions | None = None
+                       ) -> LandingOptimizer:
+        self._optimizer = LandingOptimizer(scenario, guesses, landing_options or self.options.landing)
+        return self._optimizer
+
+    def _cold_attempt(self, scenario: Scenario, start_time: float, deadline: Deadline) -> LandingResult:
+        guesses = make_guesses(scenario, self._initial, self.options.landing)
+        return self._new_optimizer(scenario, guesses).solve(scenario, deadline=deadline)
+
+    def _warm_attempt(self, scenario: Scenario, start_time: float, deadline: Deadline) -> LandingResult:
+        last = self.last
+        assert last is not None and last.landing is not None and self._optimizer is not None
+        guesses = shift_guesses(last.landing, start_time - last.start_time)
+        if self._optimizer.accepts(scenario, guesses):
+            return self._optimizer.solve(scenario, warm=last.landing, guesses=guesses, deadline=deadline)
+        log.info("the order of gate passages and landings changed: new NLP")
+        return self._new_optimizer(scenario, guesses).solve(scenario, deadline=deadline)
+
+    def _cold_same_order(self, scenario: Scenario, start_time: float, deadline: Deadline) -> LandingResult:
+        last = self.last
+        assert last is not None and last.landing is not None
+        guesses = shift_guesses(last.landing, start_time - last.start_time)
+        return self._new_optimizer(scenario, guesses).solve(scenario, deadline=deadline)
+
+    def _fresh_initializer(self, scenario: Scenario, start_time: float, deadline: Deadline) -> LandingResult:
+        opts = self.options
+        self._initial = plan_initial(scenario, opts.initializer, seed=opts.seed)
+        return self._cold_attempt(scenario, start_time, deadline)
+
+    def _free_times_attempt(self, scenario: Scenario, start_time: float, deadline: Deadline) -> LandingResult:
+        free = replace(self.options.landing, fixed_landing_times=False)
+        guesses = make_guesses(scenario, self._initial, free)
+        return self._new_optimizer(scenario, guesses, free).solve(scenario, deadline=deadline)
+
+    def _verify_and_refine(self, scenario: Scenario, landing: LandingResult, timings: dict[str, float],
+                           deadline: Deadline) -> tuple[LandingResult, VerificationReport]:
         """Verify; where separation or an obstacle fails between collocation points, add points and re-solve."""
         opts = self.options
-        fixed = landing.required_landing_times if opts.landing.fixed_landing_times else None
+        fixed = landing.required_landing_times if self._optimizer and self._optimizer.options.fixed_landing_times \
+            else None
         t2 = time.perf_counter()
         report = verify(scenario, landing.trajectories, opts.tolerances, landing_times=fixed)
         for round_ in range(opts.refinement_rounds):
             times = report.violation_times()
-            if report.verified or not times or self._optimizer is None:
+            if report.verified or not times or self._optimizer is None or deadline.expired():
                 break
             log.info("verification round %d: %s; refining the mesh there", round_ + 1, "; ".join(report.reasons[:3]))
-            refined = self._optimizer.refine_at(landing, times, scenario)
+            refined = self._optimizer.refine_at(landing, times, scenario, deadline=deadline)
             if not refined.success:
                 break
             landing = refined
@@ -178,6 +287,10 @@ class Planner:
         timings["verification_s"] = time.perf_counter() - t2
         log.info("verification: %s", "verified" if report.verified else "; ".join(report.reasons[:5]))
         return landing, report
+
+
+def _key(scenario: Scenario) -> tuple[str, ...]:
+    return tuple(sorted(a.callsign for a in scenario.aircraft))
 
 
 def plan(scenario: Scenario, options: PlanOptions | None = None, initial: InitialPlan | None = None) -> PlanResult:

@@ -1,15 +1,18 @@
-"""Outputs of a plan: the JSON result (schema in the README), a validation report, PNG figures."""
+"""Outputs of a plan: the JSON result (schema in the README), a validation report, figures."""
 
 from __future__ import annotations
 
 import json
 import math
+import os
+import subprocess
+import sys
+from dataclasses import asdict
 from pathlib import Path
 
 import numpy as np
 
 from mal_planner.pipeline import PlanResult
-from mal_planner.trajectory import Trajectory
 
 SCHEMA = "mal-planner/plan"
 SCHEMA_VERSION = 1
@@ -17,6 +20,19 @@ SCHEMA_VERSION = 1
 
 def _num(value: float | None) -> float | None:
     return None if value is None or not math.isfinite(value) else float(value)
+
+
+def _scenario(result: PlanResult) -> dict:
+    """Name, source and the geometry the figures draw (planner units)."""
+    sc = result.scenario
+    return {"name": sc.name, "source": sc.source, "airspace": sc.airspace.tolist(),
+            "runway": sc.runway_state.tolist(), "separation_nm": sc.separation_nm,
+            "obstacles": [asdict(ob) for ob in sc.obstacles], "gates": [asdict(g) for g in sc.gates]}
+
+
+def _limits(result: PlanResult, callsign: str) -> dict:
+    lim = result.scenario.aircraft_by_callsign(callsign).limits
+    return {"n_h": list(lim.n_h), "n_v": list(lim.n_v), "bank_angle_max": lim.bank_angle_max}
 
 
 def result_to_dict(result: PlanResult) -> dict:
@@ -41,6 +57,7 @@ def result_to_dict(result: PlanResult) -> dict:
                               **{k: np.asarray(tr.waypoints)[:, i].tolist() for i, k in enumerate("xyz")}},
                 "direct_path": np.asarray(tr.direct_path).tolist(),
             },
+            "limits": _limits(result, tr.callsign),
             "trajectory": trajectories[tr.callsign].to_dict(),
         })
     status = "optimal" if result.optimized else ("failed" if result.landing is not None else "initial_guess")
@@ -48,7 +65,7 @@ def result_to_dict(result: PlanResult) -> dict:
         "schema": SCHEMA,
         "version": SCHEMA_VERSION,
         "units": {"length": "nm", "time": "s", "angle": "rad", "speed": "nm/s"},
-        "scenario": {"name": result.scenario.name, "source": result.scenario.source},
+        "scenario": _scenario(result),
         "status": status,
         "verified": bool(result.verification.verified) if result.verification else False,
         "landing_order": result.order,
@@ -115,45 +132,53 @@ def validation_report(result: PlanResult) -> str:
     return "\n".join(lines) + "\n"
 
 
-def write_figures(result: PlanResult, out_dir: Path) -> list[Path]:
-    """PNG figures like the thesis's 4-1..4-4 (initializer) and 6-1..6-14 (optimizer)."""
-    from mal_planner import plots  # matplotlib is only needed here
+def write_figures(result: PlanResult | dict | Path, out_dir: Path, figures: str | bool = "all") -> list[Path]:
+    """Figures of a plan (a PlanResult, a plan.json document or its path): PNGs and/or plan.html.
 
-    sc = result.scenario
-    written: list[Path] = []
-    initial = [Trajectory(t.callsign, *t.sample(1.0)) for t in result.initial.trajectories]
-    direct = {t.callsign: np.asarray(t.direct_path) for t in result.initial.trajectories}
-    written.append(plots.save(plots.figure_paths_3d(sc, initial, direct, f"{sc.name}: initial paths (RRT + "
-                                                    "sequencer; dashed: shortest paths)"),
-                              out_dir / "initial_paths_3d.png"))
-    for key in "xyz":
-        written.append(plots.save(plots.figure_series(initial, key), out_dir / f"initial_{key}.png"))
-    if result.optimized:
-        final = result.trajectories()
-        written.append(plots.save(plots.figure_paths_3d(sc, final, None, f"{sc.name}: optimal trajectories "
-                                                        "(colour = phase)"), out_dir / "paths_3d.png"))
-        written.append(plots.save(plots.figure_yz(sc, final), out_dir / "yz_view.png"))
-        for key in ("x", "y", "z", "gamma", "heading"):
-            written.append(plots.save(plots.figure_series(final, key), out_dir / f"{key}.png"))
-        for tr in final:
-            limit = sc.aircraft_by_callsign(tr.callsign).limits.bank_angle_max
-            written.append(plots.save(plots.figure_controls(tr, limit), out_dir / f"controls_{tr.callsign}.png"))
-        if result.verification is not None and result.verification.pairs:
-            pairs = [(p.pair, p.min_distance_nm) for p in result.verification.pairs]
-            written.append(plots.save(plots.figure_min_distance(pairs, sc.separation_nm),
-                                      out_dir / "min_distance.png"))
-    return written
+    ``figures`` is none, png, html or all (True means png, False none). Everything is drawn from the
+    plan.json document, so a saved plan renders the same as a live one.
+    """
+    from mal_planner.figures import render, want
+
+    kinds = want(figures)
+    if not kinds:
+        return []
+    if isinstance(result, PlanResult):
+        result = result_to_dict(result)
+    elif not isinstance(result, dict):
+        result = json.loads(Path(result).read_text(encoding="utf-8"))
+    return render(result, Path(out_dir), kinds)
 
 
-def write_outputs(result: PlanResult, out_dir: Path, figures: bool = True) -> list[Path]:
-    """Write plan.json, report.md and (optionally) the figures into ``out_dir``; return the paths."""
+def _write_text(path: Path, text: str) -> Path:
+    """Write atomically (a reader in another process never sees a partial file)."""
+    tmp = path.with_name(f".{path.name}.tmp")
+    tmp.write_text(text, encoding="utf-8")
+    os.replace(tmp, path)
+    return path
+
+
+def write_outputs(result: PlanResult, out_dir: Path, figures: str | bool = "all") -> list[Path]:
+    """Write plan.json, report.md, then the figures (see :func:`write_figures`) into ``out_dir``."""
     out_dir = Path(out_dir)
     out_dir.mkdir(parents=True, exist_ok=True)
-    json_path = out_dir / "plan.json"
-    json_path.write_text(json.dumps(result_to_dict(result), indent=1, allow_nan=False) + "\n", encoding="utf-8")
-    report_path = out_dir / "report.md"
-    report_path.write_text(validation_report(result), encoding="utf-8")
-    written = [json_path, report_path]
-    if figures:
-        written += write_figures(result, out_dir)
-    return written
+    doc = result_to_dict(result)
+    written = [_write_text(out_dir / "plan.json", json.dumps(doc, indent=1, allow_nan=False) + "\n"),
+               _write_text(out_dir / "report.md", validation_report(result))]
+    return written + write_figures(doc, out_dir, figures)
+
+
+def start_figures(out_dir: Path, figures: str, running: subprocess.Popen | None = None) -> subprocess.Popen | None:
+    """Render the figures of ``out_dir/plan.json`` in a background process; return at once.
+
+    At most one renderer runs: while ``running`` (the previous call's process) is busy, it is left to
+    finish, and with ``--follow`` it renders again when plan.json changed meanwhile. Returns the process
+    the caller passes back next time.
+    """
+    if running is not None and running.poll() is None:
+        return running
+    log_path = Path(out_dir) / "figures.log"
+    with open(log_path, "ab") as log_file:
+        return subprocess.Popen([sys.executable, "-m", "mal_planner.figures", str(Path(out_dir) / "plan.json"),
+                                 "--figures", figures, "--follow", "-q"], stdout=log_file, stderr=subprocess.STDOUT,
+                                stdin=subprocess.DEVNULL, start_new_session=True)

@@ -2,15 +2,20 @@
 
 1. The shortest obstacle-free path of every aircraft from its start to the runway (the planner is run
    ``runs_per_aircraft`` times and the shortest path kept).
-2. Aircraft are sorted by that length: the nearest lands first and keeps its path.
-3. Every later aircraft flies through a random waypoint (on a lattice of ``lattice_resolution`` nm, in
-   the airspace, outside obstacles, on its start's side of every gate, never one tried before) such that
-   its path start -> waypoint -> runway lands between ``scenario.landing_spacing_s`` and
-   ``scenario.max_landing_spacing_s`` after the previous aircraft, and the start-to-waypoint length is
-   more than half the total. For equal speeds these are the thesis's minimum and maximum DISTANCE
-   differences between successive landings (distance = speed x time). When even the direct path lands
-   later than the maximum spacing, the aircraft keeps its direct path (a warning is logged).
-4. Times follow from the constant speed: t = cumulative length / speed, t = 0 at the start.
+2. The landing schedule (:mod:`mal_planner.initializer.schedule`): with fixed landing times the order
+   follows them; otherwise first come, first served by the turn-aware earliest landing time, spaced by
+   the minimum landing spacing. (The thesis orders by path length and spaces later aircraft 15-30 s after
+   the previous one; that is a heuristic that breaks fixed times in another order and ignores turns.)
+3. Every aircraft whose shortest path is too short for its scheduled time flies through a waypoint (on a
+   lattice of ``lattice_resolution`` nm, in the airspace, outside obstacles, on its start's side of every
+   gate) so that its path is about as long as its scheduled time needs (the turns it must fly are
+   subtracted: they make the flown path longer than the polyline). Waypoints are drawn first on the
+   ellipse of the wanted length around the start and the runway (where a straight two-leg path has
+   that length), then anywhere; the thesis's rule that the first leg be more than half the path is
+   preferred in the first half of the draws only, since it leaves no waypoint when a wall is close to
+   the runway. When no waypoint meets the window, the closest candidate is kept (a warning is logged).
+4. Times follow from the constant speed: t = cumulative length / speed, t = 0 at the start; the
+   scheduled landing time is what the optimizer is given.
 """
 
 from __future__ import annotations
@@ -23,7 +28,9 @@ import numpy as np
 
 from mal_planner.initializer.collision import CollisionChecker
 from mal_planner.initializer.planners import PathPlanner, PlanningFailed, make_planner, path_length
+from mal_planner.initializer.schedule import DEFAULT_MARGIN_S, LandingSchedule, make_schedule
 from mal_planner.initializer.smoothing import remove_repeats
+from mal_planner.initializer.timing import dubins_path_length, earliest_landing_times
 from mal_planner.scenario import Aircraft, Scenario
 
 log = logging.getLogger("mal_planner.initializer")
@@ -51,6 +58,8 @@ class InitialTrajectory:
     """The shortest path found before stretching (for plots)."""
     gate_times: dict[str, float | None]
     """Time at which the path crosses each gate's plane (interpolated), or None."""
+    scheduled_time: float = float("nan")
+    """The landing time of the schedule (what the optimizer is given); ``landing_time`` is the path's."""
 
     def position_at(self, t: np.ndarray) -> np.ndarray:
         """Positions (n, 3) at times ``t`` (clipped to [0, landing_time])."""
@@ -86,6 +95,7 @@ class InitialPlan:
     timings: dict[str, float]
     """Seconds per aircraft (by callsign) and ``"total"``."""
     collision_checks: dict[str, int]
+    schedule: LandingSchedule | None = None
 
     def by_callsign(self, callsign: str) -> InitialTrajectory:
         for tr in self.trajectories:
@@ -138,6 +148,10 @@ class Sequencer:
     gate_band: float = 0.01
     gate_margin: float = 0.005
     planner_options: dict = field(default_factory=dict)
+    landing_margin_s: float = DEFAULT_MARGIN_S
+    """Free landing times are scheduled this long after the turn-aware earliest estimate."""
+    window_s: float = 5.0
+    """A stretched path is accepted when its flown time is within this of the scheduled time."""
 
     def __post_init__(self) -> None:
         if isinstance(self.planner, str):
@@ -161,24 +175,22 @@ class Sequencer:
             timings[ac.callsign] = time.perf_counter() - t0
             log.info("%s: shortest path %.3f nm (%d points)", ac.callsign, path_length(direct[ac.callsign]),
                      len(direct[ac.callsign]))
-        order = sorted(scenario.aircraft, key=lambda a: path_length(direct[a.callsign]))
+        schedule = make_schedule(scenario, earliest_landing_times(scenario, direct), self.landing_margin_s)
+        log.info("schedule: %s", ", ".join(f"{cs} {schedule.times[cs]:.1f} s" for cs in schedule.order))
         trajectories: list[InitialTrajectory] = []
-        prev_landing: float | None = None
-        for k, ac in enumerate(order, start=1):
+        for k, cs in enumerate(schedule.order, start=1):
+            ac = scenario.aircraft_by_callsign(cs)
             t0 = time.perf_counter()
-            path, wp = direct[ac.callsign], None
-            if prev_landing is not None:
-                path, wp = self._stretch(scenario, checker, ac, direct[ac.callsign], prev_landing, rng)
-            tr = self._trajectory(scenario, ac, k, path, wp, direct[ac.callsign])
-            timings[ac.callsign] += time.perf_counter() - t0
-            log.info("%s: lands %d%s at %.1f s (path %.3f nm%s)", ac.callsign, k,
-                     {1: "st", 2: "nd", 3: "rd"}.get(k, "th"), tr.landing_time, tr.path_length,
-                     "" if wp is None else f", waypoint {np.round(wp, 3).tolist()}")
+            path, wp = self._stretch(scenario, checker, ac, direct[cs], schedule.times[cs], rng)
+            tr = self._trajectory(scenario, ac, k, path, wp, direct[cs], schedule.times[cs])
+            timings[cs] += time.perf_counter() - t0
+            log.info("%s: lands %d%s at %.1f s (path %.3f nm, %.1f s%s)", cs, k,
+                     {1: "st", 2: "nd", 3: "rd"}.get(k, "th"), tr.scheduled_time, tr.path_length,
+                     tr.landing_time, "" if wp is None else f", waypoint {np.round(wp, 3).tolist()}")
             trajectories.append(tr)
-            prev_landing = tr.landing_time
         timings["total"] = time.perf_counter() - t_all
         return InitialPlan(tuple(trajectories), getattr(self._planner, "spec", type(self._planner).__name__),
-                           seed, timings, checker.counts.as_dict())
+                           seed, timings, checker.counts.as_dict(), schedule)
 
     def _shortest(self, checker: CollisionChecker, start: np.ndarray, goal: np.ndarray,
                   rng: np.random.Generator) -> np.ndarray:
@@ -197,15 +209,18 @@ class Sequencer:
         return best
 
     def _stretch(self, scenario: Scenario, checker: CollisionChecker, ac: Aircraft, direct_path: np.ndarray,
-                 prev_landing: float, rng: np.random.Generator) -> tuple[np.ndarray, np.ndarray | None]:
-        """Path through a random lattice waypoint that meets the landing-spacing window."""
+                 scheduled: float, rng: np.random.Generator) -> tuple[np.ndarray, np.ndarray | None]:
+        """The direct path if it suits ``scheduled``, else a path through a waypoint that does."""
         v = ac.speed
-        lo_len = (prev_landing + scenario.landing_spacing_s) * v
-        hi_len = (prev_landing + scenario.max_landing_spacing_s) * v
+        dubins, straight = dubins_path_length(scenario, ac)
+        turns = max(dubins - straight, 0.0)  # what the turns add to the polyline's length
+        target = scheduled * v - turns
+        lo_len, hi_len = target - self.window_s * v, target + self.window_s * v
         direct_len = path_length(direct_path)
-        if direct_len > hi_len:
-            log.warning("%s: the direct path lands %.1f s after the previous aircraft (> %.1f s); kept",
-                        ac.callsign, direct_len / v - prev_landing, scenario.max_landing_spacing_s)
+        if direct_len >= lo_len - self.landing_margin_s * v:  # the schedule's margin needs no detour
+            if direct_len > hi_len:
+                log.warning("%s: the direct path needs %.1f s, more than the scheduled %.1f s; kept",
+                            ac.callsign, (direct_len + turns) / v, scheduled)
             return direct_path, None
         start, goal = ac.position, np.asarray(scenario.runway_state[:3], dtype=float)
         res = self.lattice_resolution
@@ -215,16 +230,23 @@ class Sequencer:
         tried: set[tuple[int, int, int]] = set()
         planned = 0
         best: tuple[float, np.ndarray, np.ndarray] | None = None  # (miss of the window, path, waypoint)
-        for _ in range(self.max_waypoint_draws):
+        for draw in range(self.max_waypoint_draws):
             if planned >= self.max_waypoint_plans:
                 break
-            key = tuple(int(i) for i in rng.integers(lo_i, hi_i + 1))
+            strict = planned < self.max_waypoint_plans // 2  # the thesis's "first leg > half" rule, then not
+            point = _ellipse_point(start, goal, target, scenario.airspace, rng) if draw % 4 else None
+            if point is None:
+                key = tuple(int(i) for i in rng.integers(lo_i, hi_i + 1))
+            else:
+                key = tuple(int(i) for i in np.clip(np.round(point / res), lo_i, hi_i))
             if key in tried:
                 continue
             tried.add(key)
             wp = np.asarray(key, dtype=float) * res
             d1, d2 = np.linalg.norm(wp - start), np.linalg.norm(goal - wp)
             if d1 + d2 > hi_len or d1 + d2 < direct_len - 1e-9:  # the straight-line bound already fails
+                continue
+            if strict and d1 <= d2:
                 continue
             if any(np.sign(g.signed_distance(wp)) != s for g, s in zip(scenario.gates, side0, strict=True)):
                 continue
@@ -242,24 +264,22 @@ class Sequencer:
             except PlanningFailed:
                 continue
             total = leg1_len + path_length(leg2)
-            if lo_len <= total <= hi_len and leg1_len > 0.5 * total:
+            if lo_len <= total <= hi_len:
                 log.debug("%s: waypoint after %d draws, %d planned", ac.callsign, len(tried), planned)
                 return remove_repeats(np.vstack([leg1, leg2])), wp
             miss = max(lo_len - total, total - hi_len, 0.0)
-            if leg1_len > 0.5 * total and (best is None or miss < best[0]):
+            if best is None or miss < best[0]:
                 best = (miss, np.vstack([leg1, leg2]), wp)
         if best is not None:
-            log.warning("%s: no waypoint met the landing spacing within %d planner runs; using the closest "
-                        "(%.1f s off the window)", ac.callsign, planned, best[0] / v)
+            log.warning("%s: no waypoint met the scheduled landing time within %d planner runs; using the closest "
+                        "(%.1f s off)", ac.callsign, planned, best[0] / v)
             return remove_repeats(best[1]), best[2]
-        raise PlanningFailed(
-            f"{ac.callsign}: no waypoint gives a landing {scenario.landing_spacing_s:g}-"
-            f"{scenario.max_landing_spacing_s:g} s after the previous aircraft ({len(tried)} tried, "
-            f"{planned} planned)"
-        )
+        log.warning("%s: no waypoint found for a %.1f s landing (%d tried); the direct path is kept", ac.callsign,
+                    scheduled, len(tried))
+        return direct_path, None
 
     def _trajectory(self, scenario: Scenario, ac: Aircraft, order: int, path: np.ndarray,
-                    wp: np.ndarray | None, direct_path: np.ndarray) -> InitialTrajectory:
+                    wp: np.ndarray | None, direct_path: np.ndarray, scheduled: float) -> InitialTrajectory:
         path = remove_repeats(path)
         times = timed_path(path, ac.speed)
         wp_index = None
@@ -269,8 +289,31 @@ class Sequencer:
         return InitialTrajectory(
             callsign=ac.callsign, order=order, waypoints=path, times=times, speed=ac.speed,
             path_length=path_length(path), landing_time=float(times[-1]), waypoint=wp, waypoint_index=wp_index,
-            direct_path=direct_path, gate_times=gate_crossing_times(scenario, path, times),
+            direct_path=direct_path, gate_times=gate_crossing_times(scenario, path, times), scheduled_time=scheduled,
         )
+
+
+def _ellipse_point(start: np.ndarray, goal: np.ndarray, length: float, airspace: np.ndarray,
+                   rng: np.random.Generator) -> np.ndarray | None:
+    """A random point P with |P - start| + |goal - P| = ``length`` (horizontally), or None if none exists.
+
+    Its altitude is drawn between the two ends' altitudes (clipped to the airspace).
+    """
+    s2, g2 = start[:2], goal[:2]
+    half_focal = 0.5 * float(np.linalg.norm(g2 - s2))
+    a = 0.5 * length
+    if a <= half_focal or half_focal == 0.0:
+        return None
+    b = float(np.sqrt(a * a - half_focal * half_focal))
+    u = (g2 - s2) / (2.0 * half_focal)
+    w = np.array([-u[1], u[0]])
+    theta = rng.uniform(0.0, 2.0 * np.pi)
+    xy = 0.5 * (s2 + g2) + a * np.cos(theta) * u + b * np.sin(theta) * w
+    z = rng.uniform(min(start[2], goal[2]), max(start[2], goal[2]))
+    point = np.array([xy[0], xy[1], z])
+    if np.any(point < airspace[:, 0]) or np.any(point > airspace[:, 1]):
+        return None
+    return point
 
 
 def plan_initial(scenario: Scenario, planner: str | PathPlanner = "multi-rrt", seed: int | None = None,

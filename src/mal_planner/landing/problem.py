@@ -30,6 +30,38 @@ GAMMA_BOUND = math.radians(30.0)
 HEADING_BOUND = 4.0 * math.pi
 
 
+@dataclass(frozen=True)
+class SafetyMargins:
+    """How much stricter than the scenario's minima the NLP is (the verifier allows no tolerance at all).
+
+    Path constraints hold at the collocation points; between them, and after re-integrating the published
+    controls, a trajectory that rides a constraint can cross it by a little. These margins keep that
+    little on the safe side; where it is not enough the verification finds it and the mesh is refined.
+    """
+
+    separation_nm: float = 0.005
+    """Added to the minimum separation (about 9 m)."""
+    obstacle_nm: float = 0.01
+    """Obstacles are inflated by this in every semi-axis (about 18 m)."""
+    clearance: float = 1e-4
+    """Lower bound of ln ||r||_p of the inflated obstacles at the collocation points."""
+    gate_nm: float = 0.002
+    """The gate event stays this far inside the hole's edges, beyond the obstacle margin (the wall pieces
+    are rounded p-norm shapes)."""
+    airspace_nm: float = 1e-3
+    """The airspace is shrunk by this (about 2 m); the runway threshold is crossed this high above the
+    floor (real approaches cross it at about 15 m), so the flown path never touches the ground early."""
+    bank_rad: float = math.radians(0.25)
+    """Taken off the bank-angle limit."""
+    load_factor: float = 1e-3
+    """Taken off both ends of the load-factor limits."""
+
+    @property
+    def hole_nm(self) -> float:
+        """How far inside the hole's edges the gate event is kept."""
+        return self.obstacle_nm + self.gate_nm
+
+
 @dataclass
 class LandingProblem:
     problem: Problem
@@ -50,14 +82,11 @@ def _wrap_near(target: float, reference: float) -> float:
 
 def build_landing_problem(scenario: Scenario, layout: PhaseLayout, guesses: list[AircraftGuess],
                           fixed_landing_times: bool = True, mesh: PhaseMesh | None = None,
-                          horizon: float | None = None, gate_margin: float = 0.002,
-                          clearance: float = 1e-4, segment_seconds: float | None = None) -> LandingProblem:
+                          horizon: float | None = None, margins: SafetyMargins | None = None,
+                          segment_seconds: float | None = None) -> LandingProblem:
     """Assemble the OCP; ``guesses`` are in landing order and place each phase's initial guess.
 
-    ``gate_margin`` (nm) shrinks the hole for the gate event: the event sits on the wall's exit face, and
-    passing exactly at the hole's edge would graze the rounded p-norm pieces inside the wall's thickness.
-    ``clearance`` is the lower bound of ln ||r||_p at the collocation points (1e-4: obstacles inflated by
-    0.01%), so that an active obstacle constraint does not dip into the obstacle between the points.
+    ``margins`` (see :class:`SafetyMargins`) make every constraint a little stricter than the scenario's.
     ``segment_seconds`` scales the initial mesh to the guessed phase durations: about one segment per that
     many seconds, at most ``mesh``'s segment count (None: ``mesh`` for every phase).
     """
@@ -67,7 +96,7 @@ def build_landing_problem(scenario: Scenario, layout: PhaseLayout, guesses: list
     horizon = horizon or 2.0 * max(g.landing_time for g in guesses) + 60.0
     mesh = mesh or PhaseMesh.uniform(4, 6)
     event_times = [ev.time_guess for ev in layout.events]
-    ctx = _Context(scenario, layout, aircraft, guesses, gate, horizon, gate_margin, clearance)
+    ctx = _Context(scenario, layout, aircraft, guesses, gate, horizon, margins or SafetyMargins())
     phases: list[Phase] = []
     members: list[list[int]] = []
     for k in range(layout.n_phases):
@@ -132,14 +161,15 @@ class _Context:
     guesses: list[AircraftGuess]
     gate: Gate | None
     horizon: float
-    gate_margin: float
-    clearance: float
+    margins: SafetyMargins
 
 
 def _phase(ctx: _Context, k: int, who: list[int], mesh: PhaseMesh, guess_span: tuple[float, float]) -> Phase:
     """Phase ``k`` with the aircraft ``who`` (landing-order indices) airborne in it."""
     scenario, layout, aircraft, guesses, gate = ctx.scenario, ctx.layout, ctx.aircraft, ctx.guesses, ctx.gate
-    horizon, gate_margin, clearance = ctx.horizon, ctx.gate_margin, ctx.clearance
+    horizon, margins = ctx.horizon, ctx.margins
+    space_lo, space_hi = scenario.airspace[:, 0] + margins.airspace_nm, scenario.airspace[:, 1] - margins.airspace_nm
+    obstacles = [ob.inflated(margins.obstacle_nm) for ob in scenario.obstacles]
     states, controls = [], []
     x_lb, x_ub, u_lb, u_ub = [], [], [], []
     xf_lb, xf_ub = [], []
@@ -148,8 +178,8 @@ def _phase(ctx: _Context, k: int, who: list[int], mesh: PhaseMesh, guess_span: t
         ac, cs = aircraft[i], layout.callsigns[i]
         states += [f"{cs}.{s}" for s in STATE_NAMES]
         controls += [f"{cs}.n_h", f"{cs}.n_v"]
-        lo = [*scenario.airspace[:, 0], -GAMMA_BOUND, -HEADING_BOUND]
-        hi = [*scenario.airspace[:, 1], GAMMA_BOUND, HEADING_BOUND]
+        lo = [*space_lo, -GAMMA_BOUND, -HEADING_BOUND]
+        hi = [*space_hi, GAMMA_BOUND, HEADING_BOUND]
         if gate is not None:  # keep each aircraft on its side of the gate plane in this phase
             if layout.approaching(k, i):
                 (lo if gate.direction < 0 else hi)[gate.axis] = gate.position
@@ -162,24 +192,25 @@ def _phase(ctx: _Context, k: int, who: list[int], mesh: PhaseMesh, guess_span: t
         if end.aircraft == i and end.kind == "gate" and gate is not None:
             flo[gate.axis] = fhi[gate.axis] = gate.position
             for (b_lo, b_hi), ax in zip(gate.bounds, gate.other_axes, strict=True):
-                flo[ax], fhi[ax] = max(flo[ax], b_lo + gate_margin), min(fhi[ax], b_hi - gate_margin)
+                flo[ax], fhi[ax] = max(flo[ax], b_lo + margins.hole_nm), min(fhi[ax], b_hi - margins.hole_nm)
             flo[3] = fhi[3] = gate.flight_path_angle
             flo[4] = fhi[4] = _wrap_near(gate.heading, guess_heading)
         elif end.aircraft == i and end.kind == "land":
             rw = scenario.runway_state
-            flo[:4] = fhi[:4] = list(rw[:4])
+            flo[:3] = fhi[:3] = list(np.clip(rw[:3], space_lo, space_hi))  # the threshold, inside the margin
+            flo[3] = fhi[3] = float(rw[3])
             flo[4] = fhi[4] = _wrap_near(float(rw[4]), guess_heading)
         xf_lb += flo
         xf_ub += fhi
-        u_lb += [ac.limits.n_h[0], ac.limits.n_v[0]]
-        u_ub += [ac.limits.n_h[1], ac.limits.n_v[1]]
+        u_lb += [ac.limits.n_h[0] + margins.load_factor, ac.limits.n_v[0] + margins.load_factor]
+        u_ub += [ac.limits.n_h[1] - margins.load_factor, ac.limits.n_v[1] - margins.load_factor]
     n_ac = len(who)
     models = [aircraft[i].dynamics for i in who]
     limits = [aircraft[i].limits for i in who]
     # An obstacle matters to an aircraft in this phase only if it overlaps the box the state bounds allow
     # (e.g. the wall, which lies on the approach side of its gate, is irrelevant after the gate).
     relevant = [
-        [ob for ob in scenario.obstacles if _overlaps(ob.bounding_box(), x_lb[5 * j:5 * j + 3], x_ub[5 * j:5 * j + 3])]
+        [ob for ob in obstacles if _overlaps(ob.bounding_box(), x_lb[5 * j:5 * j + 3], x_ub[5 * j:5 * j + 3])]
         for j in range(len(who))
     ]
     pairs = list(itertools.combinations(range(n_ac), 2))
@@ -201,7 +232,7 @@ def _phase(ctx: _Context, k: int, who: list[int], mesh: PhaseMesh, guess_span: t
             # ln(F)/p = ln of the p-norm: the thesis's constraint divided by p, the same feasible set with
             # p times smaller derivatives (p = 50 for the wall).
             out += [ob.log_pnorm(px, py, pz) / ob.p for ob in relevant[j]]
-            out.append(bank_limit_residuals(u[2 * j], u[2 * j + 1], limits[j].bank_angle_max))
+            out.append(bank_limit_residuals(u[2 * j], u[2 * j + 1], limits[j].bank_angle_max - margins.bank_rad))
         for a, b in pairs:
             d = x[5 * a:5 * a + 3] - x[5 * b:5 * b + 3]
             out.append(ca.sumsqr(d))
@@ -209,9 +240,9 @@ def _phase(ctx: _Context, k: int, who: list[int], mesh: PhaseMesh, guess_span: t
 
     p_lb, p_ub = [], []
     for j in range(n_ac):
-        p_lb += [clearance] * len(relevant[j]) + [-math.inf, -math.inf]
+        p_lb += [margins.clearance] * len(relevant[j]) + [-math.inf, -math.inf]
         p_ub += [math.inf] * len(relevant[j]) + [0.0, 0.0]
-    sep2 = scenario.separation_nm**2
+    sep2 = (scenario.separation_nm + margins.separation_nm) ** 2
     p_lb += [sep2] * len(pairs)
     p_ub += [math.inf] * len(pairs)
 
@@ -230,6 +261,11 @@ def _phase(ctx: _Context, k: int, who: list[int], mesh: PhaseMesh, guess_span: t
         final_state_ub=xf_ub,
         control_lb=u_lb,
         control_ub=u_ub,
+        # The initial states are given (radar): they may lie on the airspace boundary, inside the margin.
+        initial_state_lb=[v for _ in who for v in (*scenario.airspace[:, 0], -GAMMA_BOUND, -HEADING_BOUND)]
+        if k == 0 else None,
+        initial_state_ub=[v for _ in who for v in (*scenario.airspace[:, 1], GAMMA_BOUND, HEADING_BOUND)]
+        if k == 0 else None,
         t0_bounds=(0.0, 0.0) if k == 0 else (0.0, horizon),
         tf_bounds=(0.0, horizon),
         min_duration=1e-2,

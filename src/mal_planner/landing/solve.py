@@ -4,16 +4,16 @@ from __future__ import annotations
 
 import logging
 import time
-from collections.abc import Sequence
 from dataclasses import dataclass, field
 from typing import Literal
 
 import numpy as np
 
-from mal_planner.dynamics import ControlLimits
+from mal_planner.initializer.schedule import make_schedule
+from mal_planner.initializer.timing import earliest_landing_times
 from mal_planner.landing.guess import AircraftGuess, guess_from_initial_plan, straight_line_guess
 from mal_planner.landing.layout import PhaseLayout, plan_layout
-from mal_planner.landing.problem import LandingProblem, build_landing_problem, phase_guesses
+from mal_planner.landing.problem import LandingProblem, SafetyMargins, build_landing_problem, phase_guesses
 from mal_planner.ocp import MeshIteration, OCPOptions, OCPSolution, OCPSolver, PhaseMesh
 from mal_planner.scenario import Scenario
 from mal_planner.trajectory import Trajectory
@@ -38,8 +38,8 @@ class LandingOptions:
     guess: Literal["initializer", "straight"] = "initializer"
     """Initial guess: the initializer's paths (the thesis's method) or naive straight lines."""
     fixed_landing_times: bool = True
-    """Fix the landing times (scenario's, else the sequencer's plus ``landing_time_margin_s``)."""
-    landing_time_margin_s: float = 5.0
+    """Fix the landing times at the schedule's (the scenario's where it gives them); False: the optimizer
+    chooses them, subject to the minimum spacing."""
     segments: int = 4
     """Initial mesh: at most this many segments per phase ..."""
     degree: int = 6
@@ -55,13 +55,11 @@ class LandingOptions:
     max_nlp_iterations: int = 3000
     refine: bool = True
     output_dt: float = 0.25
-    gate_margin_nm: float = 0.002
-    obstacle_clearance: float = 1e-4
-    """Lower bound of ln ||r||_p for obstacles at the collocation points (they are inflated by 0.01%)."""
+    """Sampling step of the output trajectories (dense samples of the solution's interpolants)."""
+    margins: SafetyMargins = field(default_factory=SafetyMargins)
+    """How much stricter than the scenario the NLP is (the verification allows no tolerance)."""
     ipopt: dict = field(default_factory=lambda: dict(LANDING_IPOPT))
     """IPOPT options on top of the engine's defaults (see LANDING_IPOPT)."""
-    """Keep the gate event this far inside the hole's edges (the wall pieces are rounded p-norm shapes)."""
-    """Sampling step of the output trajectories (dense samples of the solution's interpolants)."""
 
 
 @dataclass
@@ -114,40 +112,13 @@ def split_segments(mesh: PhaseMesh, fractions: list[float]) -> PhaseMesh:
     return PhaseMesh(tuple(breaks), tuple(degrees))
 
 
-def project_controls(u: np.ndarray, limits: ControlLimits) -> np.ndarray:
-    """Saturate interpolated controls to the limits.
-
-    The NLP enforces the bounds and the bank cone at the collocation points; the degree N-1 control
-    interpolant between them can overshoot slightly. The commanded controls are the saturated ones (the
-    verification re-integrates with exactly these, so any effect shows up there).
-    """
-    out = u.copy()
-    out[:, 1] = np.clip(out[:, 1], *limits.n_v)
-    cap = np.tan(limits.bank_angle_max) * out[:, 1]
-    out[:, 0] = np.clip(out[:, 0], np.maximum(-cap, limits.n_h[0]), np.minimum(cap, limits.n_h[1]))
-    return out
-
-
-def landing_times_for(scenario: Scenario, callsigns: Sequence[str], sequencer_times: Sequence[float] | None,
-                      margin: float) -> list[float]:
-    """The scenario's fixed landing times if every aircraft has one, else the sequencer's plus a margin,
-    spaced by at least the scenario's landing spacing."""
-    fixed = [scenario.aircraft_by_callsign(cs).landing_time for cs in callsigns]
-    if all(t is not None for t in fixed):
-        return [float(t) for t in fixed]
-    if sequencer_times is None:
-        raise ValueError("landing times are needed: give them in the scenario or run the initializer")
-    times = [float(t) + margin for t in sequencer_times]
-    for i in range(1, len(times)):
-        times[i] = max(times[i], times[i - 1] + scenario.landing_spacing_s)
-    return times
-
-
-def _straight_order(scenario: Scenario) -> list[str]:
-    def key(ac):
-        return (ac.landing_time if ac.landing_time is not None else np.inf,
-                float(np.linalg.norm(ac.position - scenario.runway_state[:3])))
-    return [ac.callsign for ac in sorted(scenario.aircraft, key=key)]
+def scheduled_landings(scenario: Scenario, initial_plan) -> tuple[list[str], list[float]]:
+    """Landing order and times: the initializer's schedule, or (no initializer) one made from the
+    turn-aware earliest landing times alone."""
+    schedule = getattr(initial_plan, "schedule", None)
+    if schedule is None:
+        schedule = make_schedule(scenario, earliest_landing_times(scenario))
+    return list(schedule.order), schedule.time_list()
 
 
 class LandingOptimizer:
@@ -164,8 +135,8 @@ class LandingOptimizer:
         t0 = time.perf_counter()
         self.problem: LandingProblem = build_landing_problem(
             scenario, self.layout, guesses, options.fixed_landing_times,
-            PhaseMesh.uniform(options.segments, options.degree), gate_margin=options.gate_margin_nm,
-            clearance=options.obstacle_clearance, segment_seconds=options.segment_seconds)
+            PhaseMesh.uniform(options.segments, options.degree), margins=options.margins,
+            segment_seconds=options.segment_seconds)
         self.solver = OCPSolver(self.problem.problem, OCPOptions(
             tol=options.nlp_tol, max_iter=options.max_nlp_iterations, refine=options.refine,
             mesh_tol=options.mesh_tol, n_min=options.n_min, n_max=options.n_max,
@@ -178,7 +149,7 @@ class LandingOptimizer:
                 and layout_for(scenario, guesses).signature() == self.layout.signature())
 
     def solve(self, scenario: Scenario | None = None, warm: LandingResult | None = None,
-              guesses: list[AircraftGuess] | None = None) -> LandingResult:
+              guesses: list[AircraftGuess] | None = None, deadline=None) -> LandingResult:
         """Solve for ``scenario``'s initial states (default: the one built with).
 
         ``guesses`` (e.g. the previous plan shifted in time, see :func:`shift_guesses`) replace the
@@ -192,15 +163,16 @@ class LandingOptimizer:
         builds_before = self.solver.n_builds
         phase_init = phase_guesses(scenario, layout_for(scenario, guesses), guesses) if guesses else None
         meshes = warm.solution.meshes if warm is not None else None
-        sol = self.solver.solve(params, guess=phase_init, meshes=meshes, warm=True if warm is not None else None)
+        sol = self.solver.solve(params, guess=phase_init, meshes=meshes, warm=True if warm is not None else None,
+                                deadline=deadline)
         wall = time.perf_counter() - t0
         build_time = sum(m.build_time for m in sol.mesh_history)
         log.info("optimizer: %s in %.2f s (%d NLP builds, objective %.4f)", sol.status, wall,
                  self.solver.n_builds - builds_before, sol.objective)
         return self._result(sol, wall, build_time, landing_times)
 
-    def refine_at(self, previous: LandingResult, times: list[float], scenario: Scenario | None = None
-                  ) -> LandingResult:
+    def refine_at(self, previous: LandingResult, times: list[float], scenario: Scenario | None = None,
+                  deadline=None) -> LandingResult:
         """Re-solve with the mesh segments containing ``times`` split in two (warm start).
 
         Path constraints (separation, obstacles) hold only at the collocation points; where the
@@ -216,7 +188,7 @@ class LandingOptimizer:
         landing_times = [previous.required_landing_times[cs] for cs in self.layout.callsigns]
         params = self.problem.params(scenario, landing_times)
         t0 = time.perf_counter()
-        sol = self.solver.solve(params, guess=previous.solution, meshes=meshes)
+        sol = self.solver.solve(params, guess=previous.solution, meshes=meshes, deadline=deadline)
         wall = time.perf_counter() - t0
         log.info("optimizer (refined at %d places): %s in %.2f s", len(times), sol.status, wall)
         result = self._result(sol, wall, sum(m.build_time for m in sol.mesh_history), landing_times)
@@ -241,11 +213,13 @@ class LandingOptimizer:
                 # Dense samples of the solution's own interpolants (states and controls), plus the nodes.
                 # A phase boundary appears twice: the end of one phase with the control that applied up
                 # to it, then the start of the next with the control that applies from it.
-                n = max(int(np.ceil((phase.tf - phase.t0) / self.options.output_dt)), 1) + 1
-                t = np.union1d(np.linspace(phase.t0, phase.tf, n), phase.t)
+                # The global grid k * output_dt inside the phase, its ends and the nodes.
+                dt = self.options.output_dt
+                grid = np.arange(np.floor(phase.t0 / dt) + 1, np.ceil(phase.tf / dt)) * dt
+                t = np.union1d(np.concatenate([grid, [phase.t0, phase.tf]]), phase.t)
                 x_all, u_all = phase.interpolate(t)
                 x = x_all[:, 5 * j:5 * j + 5]
-                u = project_controls(u_all[:, 2 * j:2 * j + 2], self.scenario.aircraft_by_callsign(cs).limits)
+                u = u_all[:, 2 * j:2 * j + 2]  # published exactly as solved: the verification checks them
                 ts.append(t)
                 xs.append(x)
                 us.append(u)
@@ -291,12 +265,7 @@ def shift_guesses(previous: LandingResult, dt: float) -> list[AircraftGuess]:
 
 def make_guesses(scenario: Scenario, initial_plan, options: LandingOptions) -> list[AircraftGuess]:
     """Guesses in landing order from the initializer's plan (or straight lines, per ``options.guess``)."""
-    if initial_plan is not None:
-        order = [t.callsign for t in initial_plan.trajectories]
-        seq_times = [t.landing_time for t in initial_plan.trajectories]
-    else:
-        order, seq_times = _straight_order(scenario), None
-    landing = landing_times_for(scenario, order, seq_times, options.landing_time_margin_s)
+    order, landing = scheduled_landings(scenario, initial_plan)
     if options.guess == "straight" or initial_plan is None:
         return straight_line_guess(scenario, order, landing)
     return guess_from_initial_plan(scenario, initial_plan.trajectories, landing)

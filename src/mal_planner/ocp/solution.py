@@ -34,6 +34,10 @@ class PhaseSolution:
         lay = self.layout
         frac = (tau + 1.0) / 2.0
         brk = np.asarray(lay.mesh.breaks)
+        # A time at a mesh break belongs to the segment that starts there (its first collocation point);
+        # round-off in the time -> fraction mapping must not hand it to the previous segment's end.
+        near = np.abs(frac[:, None] - brk[None, :]) <= 1e-12 * max(1.0, abs(dur))
+        frac = np.where(near.any(axis=1), brk[np.argmax(near, axis=1)], frac)
         seg = np.clip(np.searchsorted(brk, frac, side="right") - 1, 0, lay.mesh.n_segments - 1)
         x = np.empty((tq.size, self.x.shape[1]))
         u = np.empty((tq.size, self.u.shape[1]))

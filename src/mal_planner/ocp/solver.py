@@ -13,7 +13,7 @@ import numpy as np
 from .mesh import estimate_errors, refine
 from .problem import PhaseGuess, PhaseMesh, Problem
 from .solution import MeshIteration, OCPSolution, PhaseSolution
-from .transcription import Transcription, phase_function
+from .transcription import IterationWatch, Transcription, phase_function
 
 log = logging.getLogger("mal_planner.ocp")
 
@@ -88,6 +88,7 @@ class OCPSolver:
         self._cache: dict[MeshKey, Transcription] = {}
         self._nlp_opts = {False: self.options.nlpsol_options(), True: self.options.nlpsol_options(True)}
         self.n_builds = 0
+        self.watch = IterationWatch()
 
     # ------------------------------------------------------------------ caching
     def transcription(self, meshes: Sequence[PhaseMesh], warm: bool = False) -> tuple[Transcription, bool]:
@@ -97,7 +98,7 @@ class OCPSolver:
         tr = self._cache.get(key)
         if tr is not None:
             return tr, False
-        tr = Transcription(self.problem, meshes, self._funcs, self._nlp_opts[warm])
+        tr = Transcription(self.problem, meshes, self._funcs, self._nlp_opts[warm], self.watch)
         self._cache[key] = tr
         self.n_builds += 1
         return tr, True
@@ -120,6 +121,7 @@ class OCPSolver:
         meshes: Sequence[PhaseMesh] | None = None,
         refine_mesh: bool | None = None,
         warm: bool | None = None,
+        deadline: Any = None,
     ) -> OCPSolution:
         """Solve, refining the mesh until the error estimate is below ``mesh_tol``.
 
@@ -128,6 +130,8 @@ class OCPSolver:
         ``meshes`` overrides the phases' initial meshes (e.g. ``previous.meshes``). ``warm`` forces the
         warm-start IPOPT options on (or off) for the first solve, e.g. for a guess built from a previous
         solution shifted in time; by default they are used when ``guess`` is an :class:`OCPSolution`.
+        ``deadline`` (an object with ``expired()``) stops IPOPT and the refinement when it expires; the
+        best successful mesh iteration so far is returned.
         """
         opt = self.options
         do_refine = opt.refine if refine_mesh is None else refine_mesh
@@ -140,16 +144,22 @@ class OCPSolver:
         total_time = 0.0
         total_iter = 0
         sol: OCPSolution | None = None
+        best: OCPSolution | None = None  # the successful iteration with the smallest mesh error
+        best_iteration = -1
         src: GuessArg = guess
         converged = False
+        self.watch.start(deadline)
         for it in range(opt.max_mesh_iterations + 1):
+            if it > 0 and deadline is not None and deadline.expired():
+                log.warning("time limit reached after %d mesh iterations", it)
+                break
             visited.add(tuple(m.key() for m in cur))
             warm_now = isinstance(src, OCPSolution) if warm is None or it > 0 else warm
             tr, built = self.transcription(cur, warm_now)
             build_time = tr.build_time if built else 0.0
             w0 = tr.initial_guess(src)
             res = tr.solve(p, w0)
-            if not res.success and warm_now and self.options.warm_ipopt:
+            if not res.success and warm_now and self.options.warm_ipopt and not self.watch.stopped:
                 log.info("warm-started NLP failed (%s); retrying cold", res.status)
                 total_time += res.solve_time
                 total_iter += res.iterations
@@ -193,10 +203,15 @@ class OCPSolver:
             sol.max_error = max_err
             if not res.success:
                 break
+            if best is None or max_err <= best.max_error:
+                best, best_iteration = sol, it
             if max_err <= opt.mesh_tol:
                 converged = True
                 break
             if not do_refine:
+                break
+            if it - best_iteration >= 2:
+                log.info("mesh refinement stalled: no better error in 2 iterations; stopping")
                 break
             new = tuple(refine(m, e, opt.mesh_tol, opt.n_min, opt.n_max) for m, e in zip(cur, errors, strict=True))
             key = tuple(m.key() for m in new)
@@ -208,11 +223,19 @@ class OCPSolver:
                 break
             cur, src = new, sol
         assert sol is not None
+        if best is not None and (best is not sol or (do_refine and not converged)):
+            # A later mesh iteration failed, or the refinement stopped above the tolerance: the best
+            # successful iteration is the answer; its accuracy is reported, and the caller's independent
+            # checks decide whether it is good enough.
+            log.warning("mesh refinement stopped at error %.2e (tolerance %.0e); keeping mesh iteration %d",
+                        best.max_error, opt.mesh_tol, best_iteration)
+            sol = best
+            sol.status = f"{sol.status} (mesh error {sol.max_error:.1e} > {opt.mesh_tol:.0e})"
         sol.mesh_history = history
         sol.iterations = total_iter
         sol.solve_time = total_time
         sol.mesh_converged = converged
-        sol.success = sol.nlp_success and (converged or not do_refine)
+        sol.success = sol.nlp_success
         return sol
 
     def _make_solution(self, tr: Transcription, res, params: np.ndarray) -> OCPSolution:

@@ -56,6 +56,15 @@ def _choice(*options: str) -> Check:
     return check
 
 
+def _figures(v: Any) -> str:
+    """none, png, html or all; the former booleans true/false mean png/none."""
+    if isinstance(v, bool):
+        return "png" if v else "none"
+    if isinstance(v, str) and v.strip().lower() in ("none", "png", "html", "all"):
+        return v.strip().lower()
+    raise ValueError("expected none, png, html or all")
+
+
 def _initializer(v: Any) -> str:
     if v == "multi-rrt" or (isinstance(v, str) and v.startswith("ompl:") and len(v) > 5):
         return str(v)
@@ -91,7 +100,8 @@ PARAMETERS: dict[str, tuple[Any, Check, str]] = {
     "radar_qos": ("default", _choice("default", "sensor_data"), "QoS of the radar subscriptions"),
     "frame_id": ("runway", _str, "frame of radar input and published paths"),
     "output_dir": ("", _str, "write plan.json, report.md and figures here after each plan ('' = off)"),
-    "figures": (True, _bool, "write PNG figures into output_dir"),
+    "figures": ("png", _figures, "figures rendered into output_dir in a background process after each plan: "
+                "none, png, html (interactive plan.html) or all (true/false: png/none)"),
     "service_timeout_s": (600.0, _float(positive=True), "longest a service call waits for its plan [s]"),
 }
 
@@ -121,7 +131,7 @@ class NodeParams:
     radar_qos: str
     frame_id: str
     output_dir: str
-    figures: bool
+    figures: str
     service_timeout_s: float
 
     def plan_options(self) -> PlanOptions:

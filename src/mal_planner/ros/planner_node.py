@@ -371,7 +371,11 @@ class PlannerNode:
             log.warning("mal_planner.report is not available: no plan JSON/figures written")
             return False
         try:
-            write_outputs(result, self.out_dir, figures=self.params.figures)
+            write_outputs(result, self.out_dir, figures="none")
+            if self.params.figures != "none":
+                from mal_planner.report import start_figures
+
+                self._figures = start_figures(self.out_dir, self.params.figures, getattr(self, "_figures", None))
         except Exception as exc:
             log.error("writing outputs to %s failed: %s", self.out_dir, exc)
             return False

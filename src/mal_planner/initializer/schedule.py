@@ -1,0 +1,105 @@
+"""The landing schedule: who lands when, decided before any path is stretched or any NLP is built.
+
+* Fixed landing times (the scenario gives every aircraft one): the order follows the times.
+* Free landing times: first come, first served by the turn-aware earliest landing time
+  (:mod:`mal_planner.initializer.timing`), each aircraft at ``max(earliest + margin, previous + spacing)``.
+* Some fixed, some free: the fixed ones keep their times; the others, in order of their earliest time,
+  take the earliest slot after ``earliest + margin`` that keeps the minimum spacing to every time taken.
+
+:func:`check_request` finds the requests no plan can meet (exit 2 / a FAILED status with the reason), so
+that they never reach the optimizer as solver noise.
+"""
+
+from __future__ import annotations
+
+import itertools
+import logging
+from collections.abc import Mapping
+from dataclasses import dataclass
+
+import numpy as np
+
+from mal_planner.errors import InfeasibleRequest
+from mal_planner.initializer.timing import reachable_lower_bound
+from mal_planner.scenario import Scenario
+
+log = logging.getLogger("mal_planner.initializer")
+
+DEFAULT_MARGIN_S = 5.0
+"""Scheduled landing times sit this far after the turn-aware earliest estimate (room for the optimizer)."""
+
+
+@dataclass(frozen=True)
+class LandingSchedule:
+    order: tuple[str, ...]
+    """Callsigns, first to land first."""
+    times: dict[str, float]
+    """Scheduled landing time per callsign (s from the initial states)."""
+    earliest: dict[str, float]
+    """Turn-aware earliest landing estimates the schedule was made from."""
+    fixed: frozenset[str]
+    """Aircraft whose landing time the scenario fixes."""
+
+    def time_list(self) -> list[float]:
+        return [self.times[cs] for cs in self.order]
+
+
+def check_request(scenario: Scenario, gate_margin_nm: float = 0.0) -> None:
+    """Raise :class:`InfeasibleRequest` (one line, naming the aircraft and the numbers) for impossible requests.
+
+    Checked: separation broken at the start, fixed landing times closer than the minimum spacing, fixed
+    landing times earlier than any trajectory can reach the runway, a gate hole no aircraft can pass.
+    """
+    sep = scenario.separation_nm
+    for a, b in itertools.combinations(scenario.aircraft, 2):
+        d = float(np.linalg.norm(a.position - b.position))
+        if d < sep:
+            raise InfeasibleRequest(f"{a.callsign} and {b.callsign} are {d:.3f} nm apart at the start "
+                                    f"(minimum separation {sep:g} nm)")
+    for gate in scenario.gates:
+        axes = [a for a in range(3) if a != gate.axis]
+        for (lo, hi), ax in zip(gate.bounds, axes, strict=True):
+            lo_ok, hi_ok = max(lo + gate_margin_nm, scenario.airspace[ax, 0]), min(hi - gate_margin_nm,
+                                                                                  scenario.airspace[ax, 1])
+            if lo_ok >= hi_ok:
+                raise InfeasibleRequest(f"gate {gate.name!r}: its hole {'xyz'[ax]} [{lo:g}, {hi:g}] nm leaves no "
+                                        f"room to pass inside the airspace {scenario.airspace[ax].tolist()}")
+        if not scenario.airspace[gate.axis, 0] <= gate.position <= scenario.airspace[gate.axis, 1]:
+            raise InfeasibleRequest(f"gate {gate.name!r} lies outside the airspace")
+    fixed = [(ac.landing_time, ac) for ac in scenario.aircraft if ac.landing_time is not None]
+    for ac in scenario.aircraft:
+        if ac.landing_time is None:
+            continue
+        bound = reachable_lower_bound(scenario, ac)
+        if ac.landing_time < bound:
+            raise InfeasibleRequest(f"{ac.callsign}: landing time {ac.landing_time:g} s is earlier than it can "
+                                    f"reach the runway ({bound:.1f} s at full speed on straight lines)")
+    fixed.sort(key=lambda item: item[0])
+    for (ta, a), (tb, b) in itertools.pairwise(fixed):
+        if tb - ta < scenario.landing_spacing_s - 1e-9:
+            raise InfeasibleRequest(f"{a.callsign} and {b.callsign} land {tb - ta:g} s apart ({ta:g} s, {tb:g} s); "
+                                    f"the minimum spacing is {scenario.landing_spacing_s:g} s")
+
+
+def make_schedule(scenario: Scenario, earliest: Mapping[str, float], margin_s: float = DEFAULT_MARGIN_S
+                  ) -> LandingSchedule:
+    """Order and landing times (see the module docstring)."""
+    spacing = scenario.landing_spacing_s
+    times: dict[str, float] = {}
+    fixed = frozenset(ac.callsign for ac in scenario.aircraft if ac.landing_time is not None)
+    for ac in scenario.aircraft:
+        if ac.landing_time is not None:
+            times[ac.callsign] = float(ac.landing_time)
+            if ac.landing_time < earliest[ac.callsign]:
+                log.warning("%s: fixed landing time %.1f s is before the estimated earliest landing %.1f s; "
+                            "trying anyway", ac.callsign, ac.landing_time, earliest[ac.callsign])
+    free = sorted((ac.callsign for ac in scenario.aircraft if ac.landing_time is None),
+                  key=lambda cs: (earliest[cs], cs))
+    for cs in free:
+        t = earliest[cs] + margin_s
+        for taken in sorted(times.values()):  # first slot at or after t that keeps the spacing to all taken
+            if abs(t - taken) < spacing:
+                t = taken + spacing
+        times[cs] = float(t)
+    order = tuple(sorted(times, key=lambda cs: (times[cs], earliest[cs], cs)))
+    return LandingSchedule(order, times, dict(earliest), fixed)
