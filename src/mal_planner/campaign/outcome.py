@@ -50,8 +50,9 @@ def classify(result: PlanResult | None = None, error: BaseException | None = Non
     * ``error``: what the run raised: ScenarioError / InvalidInput -> ``invalid_input``, InfeasibleRequest ->
       ``infeasible_request`` (any PlanningError: its own class), the initializer's PlanningFailed ->
       ``initializer_failed``, MemoryError -> ``out_of_memory``, anything else -> ``crash``;
-    * ``result``: the optimizer did not succeed -> ``optimizer_failed``; the verification did not pass ->
-      ``verification_failed``; else success;
+    * ``result``: :attr:`PlanResult.failure` (optimizer not successful -> ``optimizer_failed``, plan not
+      verified -> ``verification_failed``, either because the plan's time limit ran out -> ``timeout``);
+      a campaign counts only a verified plan as success;
     * neither (the process died without a result): ``exit_code`` (negative: the signal) and the tail of its
       output -> ``out_of_memory`` when the output shows a failed allocation, else ``crash``.
     """
@@ -71,15 +72,11 @@ def classify(result: PlanResult | None = None, error: BaseException | None = Non
             return Outcome("out_of_memory", message)
         return Outcome("crash", message)
     if result is not None:
-        if result.landing is None:
-            return Outcome("optimizer_failed", "the optimizer did not run")
-        if not result.landing.success:
-            return Outcome("optimizer_failed", one_line(f"optimizer status {result.landing.status}"))
-        report = result.verification
-        if report is None:
-            return Outcome("verification_failed", "the verification did not run")
-        if not report.verified:
-            return Outcome("verification_failed", one_line(report.reasons[0] if report.reasons else "not verified"))
+        failure = result.failure  # the pipeline's own verdict, shared with mal-plan and the node
+        if failure is not None:
+            return Outcome(failure[0], one_line(failure[1]))
+        if not result.verified:
+            return Outcome("verification_failed", "the plan was not verified (optimizer or verification off)")
         return Outcome(None, "verified")
     return _dead_process(exit_code, output_tail)
 
