@@ -177,3 +177,17 @@ def test_a_row_cut_short_by_an_interruption_is_dropped(tmp_path: Path) -> None:
 def test_summary_only_needs_a_table(tmp_path: Path, capsys) -> None:
     assert main(["--out", str(tmp_path), "--summary-only"]) == 2
     assert "no such campaign table" in capsys.readouterr().err
+
+
+def test_plan_options_are_built_like_mal_plan() -> None:
+    from mal_planner.campaign.cli import build_parser
+    from mal_planner.campaign.plan_options import check_options, options_from_args, to_plan_options
+
+    args = build_parser().parse_args(["x.yaml", "--out", "o", "--seed", "5", "--mesh-tol", "1e-4", "--no-refine",
+                                      "--free-landing-times", "--plan-time-limit-s", "30"])
+    options = options_from_args(args)
+    plan = to_plan_options(options)
+    assert check_options(options) is None
+    assert (plan.seed, plan.landing.mesh_tol, plan.landing.refine, plan.landing.fixed_landing_times,
+            plan.time_limit_s) == (5, 1e-4, False, False, 30.0)
+    assert "--plan-time-limit-s" in check_options({**options, "time_limit_s": -1.0})

@@ -11,7 +11,7 @@ import time
 from pathlib import Path
 from typing import Any
 
-from mal_planner.campaign.plan_options import add_plan_arguments, check_options, options_from_args
+from mal_planner.campaign.plan_options import DEFAULTS, add_plan_arguments, check_options, options_from_args
 from mal_planner.campaign.results import ResultsFormatError, ResultsTable, done_files, read_rows
 from mal_planner.campaign.runner import EngineSettings, ScenarioJob, default_workers, run_campaign
 
@@ -115,8 +115,8 @@ def check_resume(out: Path, resume: bool, options: dict[str, Any]) -> set[str]:
     if not resume:
         raise UsageError(f"{table}: exists; use --resume to continue that campaign or another --out")
     if record.exists():
-        previous = json.loads(record.read_text(encoding="utf-8")).get("plan_options")
-        if previous != options:
+        previous = {**DEFAULTS, **(json.loads(record.read_text(encoding="utf-8")).get("plan_options") or {})}
+        if previous != options:  # options added since that campaign count with their defaults
             raise UsageError(f"{record}: plan options {previous} differ from this run's {options}; "
                              "resume with the same options")
     try:

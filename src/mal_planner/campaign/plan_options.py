@@ -10,7 +10,7 @@ if TYPE_CHECKING:
     from mal_planner.pipeline import PlanOptions
 
 DEFAULTS: dict[str, Any] = {"initializer": "multi-rrt", "seed": 0, "guess": "initializer",
-                            "free_landing_times": False, "mesh_tol": 1e-6, "refine": True}
+                            "free_landing_times": False, "mesh_tol": 1e-6, "refine": True, "time_limit_s": None}
 
 
 def add_plan_arguments(parser: argparse.ArgumentParser) -> None:
@@ -27,12 +27,15 @@ def add_plan_arguments(parser: argparse.ArgumentParser) -> None:
     group.add_argument("--mesh-tol", type=float, default=DEFAULTS["mesh_tol"],
                        help="mesh error tolerance (default: %(default)s)")
     group.add_argument("--no-refine", action="store_true", help="solve on the initial mesh only")
+    group.add_argument("--plan-time-limit-s", type=float, default=None,
+                       help="the pipeline's own time limit per plan: it then returns its best result so far, "
+                            "classed timeout (default: none; --timeout-s kills the process in any case)")
 
 
 def options_from_args(args: argparse.Namespace) -> dict[str, Any]:
     return {"initializer": args.initializer, "seed": args.seed, "guess": args.guess,
             "free_landing_times": bool(args.free_landing_times), "mesh_tol": args.mesh_tol,
-            "refine": not args.no_refine}
+            "refine": not args.no_refine, "time_limit_s": args.plan_time_limit_s}
 
 
 def check_options(options: dict[str, Any]) -> str | None:
@@ -43,6 +46,9 @@ def check_options(options: dict[str, Any]) -> str | None:
         return f"--initializer: unknown planner {options['initializer']!r} (known: {', '.join(known_specs())})"
     if not 0.0 < options["mesh_tol"] < 1.0:
         return f"--mesh-tol: must lie in (0, 1), got {options['mesh_tol']}"
+    limit = options.get("time_limit_s")
+    if limit is not None and not limit > 0:
+        return f"--plan-time-limit-s: must be > 0, got {limit}"
     return None
 
 
@@ -53,4 +59,5 @@ def to_plan_options(options: dict[str, Any]) -> PlanOptions:
 
     landing = replace(LandingOptions(), guess=options["guess"], fixed_landing_times=not options["free_landing_times"],
                       mesh_tol=options["mesh_tol"], refine=options["refine"])
-    return PlanOptions(initializer=options["initializer"], seed=options["seed"], landing=landing)
+    return PlanOptions(initializer=options["initializer"], seed=options["seed"], landing=landing,
+                       time_limit_s=options.get("time_limit_s"))
