@@ -76,6 +76,6 @@ def test_unverified_plan_exits_3(tmp_path: Path, capsys) -> None:
     """A coarse mesh (no refinement) solves, but the flown trajectory drifts: the verification says so."""
     code = main(["scenarios/thesis.yaml", "--no-refine", "--no-figures", "--out", str(tmp_path), "-q"])
     out = capsys.readouterr().out
-    assert code == 3 and "NOT verified" in out and "re-integrated path deviates" in out
+    assert code == 3 and "NOT verified" in out
     doc = json.loads((tmp_path / "plan.json").read_text())
     assert doc["status"] == "optimal" and doc["verified"] is False and doc["verification"]["reasons"]

@@ -135,7 +135,8 @@ def test_replan_reuses_the_nlp_and_keeps_absolute_landing_times(thesis) -> None:
         states[tr.callsign] = state
     second = planner.plan(thesis.with_initial_states(states), start_time=100.0 + dt)
     assert second.optimized and second.verification.verified, second.verification.reasons
-    assert planner._optimizer.solver.n_builds == builds  # same NLP, warm-started
+    # Same NLP, warm-started (the strict verification may still refine the mesh afterwards).
+    assert second.landing.mesh_history[0].build_time == 0.0 and planner._optimizer.solver.n_builds >= builds
     for cs, t_land in first.landing_times().items():
         assert second.landing_times()[cs] + dt == pytest.approx(t_land, abs=1e-6)
     assert second.landing.nlp_iterations < first.landing.nlp_iterations

@@ -13,14 +13,15 @@ from dds_support import coarse_params, dds_env  # noqa: F401  (fixture)
 REPO = Path(__file__).resolve().parents[1]
 
 
-def test_launch_replay_end_to_end(dds_env: dict[str, str], tmp_path: Path) -> None:  # noqa: F811
+def test_launch_replay_end_to_end(backend_env: dict[str, str], tmp_path: Path) -> None:
+    """On each backend: mal-launch's children (replay, planner, recorder) run on the backend under test."""
     params = tmp_path / "params.yaml"
     params.write_text(coarse_params(), encoding="utf-8")
     out = tmp_path / "out"
     proc = subprocess.run(
         [sys.executable, "-m", "mal_planner.ros.launch", "--replay", str(REPO / "data" / "thesis_radar.mcap"),
          "--rate", "2", "--params", str(params), "--out", str(out), "--timeout", "150"],
-        env=dds_env, cwd=tmp_path, capture_output=True, text=True, timeout=240, check=False)
+        env=backend_env, cwd=tmp_path, capture_output=True, text=True, timeout=240, check=False)
     assert proc.returncode == 0, proc.stdout[-5000:] + proc.stderr[-2000:]
     assert "order  callsign" in proc.stdout and "A1" in proc.stdout
     assert (out / "plan.json").is_file() and (out / "report.md").is_file()

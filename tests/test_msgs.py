@@ -144,3 +144,37 @@ def test_interface_files_are_found() -> None:
     assert (root / "msg" / "AircraftState.msg").is_file()
     assert (root / "srv" / "PlanLanding.srv").is_file()
     assert "mal_msgs/srv/PlanLanding" in m.service_names()
+
+
+def test_hashes_equal_real_ros2_jazzy() -> None:
+    """Every message/service we know that a real ROS 2 Jazzy also has: our RIHS01 hash equals rosidl's
+    (the ``type_hashes`` of /opt/ros/jazzy/share/<pkg>/<msg|srv>/<Name>.json, compiled into the typesupport)."""
+    import json
+
+    from ros2_env import ROS_SETUP, skip_without_ros2
+
+    skip_without_ros2()
+    share = ROS_SETUP.parent / "share"
+    compared: dict[str, str] = {}
+    for path in sorted(share.glob("*/[ms][sr][gv]/*.json")):
+        for entry in json.loads(path.read_text(encoding="utf-8"))["type_hashes"]:
+            try:
+                compared[entry["type_name"]] = m.type_hash(entry["type_name"])
+            except KeyError:  # a type we never use (not in our typestore)
+                continue
+            assert compared[entry["type_name"]] == entry["hash_string"], entry["type_name"]
+    vendored = ["rcl_interfaces/srv/SetParameters", "rcl_interfaces/msg/ParameterEvent", "rcl_interfaces/msg/Log",
+                "type_description_interfaces/srv/GetTypeDescription", "rcl_interfaces/srv/ListParameters_Event"]
+    assert set(vendored) <= set(compared) and len(compared) > 150
+
+
+def test_vendored_interfaces_are_parsed_from_their_files() -> None:
+    from mal_msgs_py._interfaces import package_roots
+
+    roots = package_roots()
+    assert {"rcl_interfaces", "type_description_interfaces", "builtin_interfaces", "mal_msgs"} <= set(roots)
+    assert (roots["rcl_interfaces"] / "srv" / "SetParameters.srv").is_file()
+    assert "rcl_interfaces/srv/GetParameters" in m.service_names()
+    req, res = m.get_service("rcl_interfaces/srv/SetParameters")
+    assert res().results == [] and req().parameters == []
+    assert m.get_type("rcl_interfaces/msg/ParameterType").PARAMETER_DOUBLE == 3

@@ -1,7 +1,9 @@
 """Planner node on real DDS (loopback): replayed radar in, paths/plans out, services, restart, bad input.
 
 Every test runs the node as a separate process with coarse optimizer settings (no mesh refinement) and
-its own ROS_DOMAIN_ID; subscribers and service clients are separate processes too.
+its own ROS_DOMAIN_ID, once per backend (built-in Cyclone, and rclpy on a real ROS 2 Jazzy): the planner
+and the replay run on the backend under test (``backend_snippet``); subscribers and service clients are
+separate processes on the built-in backend (``snippet``), so the rclpy runs check interop as well.
 """
 
 from __future__ import annotations
@@ -34,14 +36,14 @@ def params_file(tmp_path: Path, extra: str = "") -> Path:
     return path
 
 
-def start_planner(snippet, params: Path, *extra: str) -> Snippet:  # noqa: F811
+def start_planner(start, params: Path, *extra: str) -> Snippet:
     args = ["--scenario", str(SCENARIO), "--params", str(params), *extra]
-    return snippet(f"import sys\nfrom mal_planner.ros.planner_node import main\nsys.exit(main({args!r}))\n")
+    return start(f"import sys\nfrom mal_planner.ros.planner_node import main\nsys.exit(main({args!r}))\n")
 
 
-def start_replay(snippet, rate: float) -> Snippet:  # noqa: F811
+def start_replay(start, rate: float) -> Snippet:
     args = [str(BAG), "--rate", str(rate), "--wait-for-subscribers", "10"]
-    return snippet(f"import sys\nfrom mal_planner.ros.replay import main\nsys.exit(main({args!r}))\n")
+    return start(f"import sys\nfrom mal_planner.ros.replay import main\nsys.exit(main({args!r}))\n")
 
 
 @contextlib.contextmanager
@@ -83,17 +85,20 @@ node = create_node("path_listener")
 got = {}
 plans = []
 node.create_subscription("mal_msgs/msg/LandingPlan", "landing_plan", plans.append, QOS_LATCHED)
+diags = []
+node.create_subscription("diagnostic_msgs/msg/DiagnosticArray", "diagnostics", diags.append, QOS_LATCHED)
 for cs in ("A1", "A2", "A3"):
     node.create_subscription("nav_msgs/msg/Path", f"aircraft/{cs}/path", lambda m, cs=cs: got.__setitem__(cs, m),
                              QOS_LATCHED)
 print("listening", flush=True)
 while True:
     node.spin_once(0.1)
-    if plans and set(got) == {"A1", "A2", "A3"} and all(
+    if plans and diags and set(got) == {"A1", "A2", "A3"} and all(
             msg_to_time(got[a.callsign]) == msg_to_time(plans[-1]) for a in plans[-1].aircraft):
         break
 plan = plans[-1]
-out = {"plan_stamp": msg_to_time(plan), "plan_frame": plan.header.frame_id,
+diag = {kv.key: kv.value for kv in diags[-1].status[0].values}
+out = {"plan_stamp": msg_to_time(plan), "plan_frame": plan.header.frame_id, "diag_plans": diag["plans"],
        "order": [a.callsign for a in sorted(plan.aircraft, key=lambda a: a.order)],
        "status": [a.status for a in plan.aircraft], "landing": {a.callsign: a.landing_time for a in plan.aircraft},
        "paths": {}}
@@ -138,6 +143,51 @@ print("LANDING " + json.dumps({"success": res.success, "message": res.message, "
       "first_pose_stamp": msg_to_time(res.paths[0].poses[0]) if res.paths else None}), flush=True)
 """
 
+# Parameter client process (rcl_interfaces services, as `ros2 param` uses them): a refused value, then a
+# failed plan (1 IPOPT iteration) that keeps the last plan, then recovery.
+PARAMS_CLIENT = """
+import json, time
+from mal_planner.ros.transport import QOS_LATCHED, create_node
+from mal_planner.ros.transport._common import value_from_msg, value_to_msg
+from mal_planner.ros.convert import byte_value, msg_to_time
+node = create_node("param_client")
+T = node.types
+setp = node.create_client("rcl_interfaces/srv/SetParameters", "/planner/set_parameters")
+getp = node.create_client("rcl_interfaces/srv/GetParameters", "/planner/get_parameters")
+trigger = node.create_client("std_srvs/srv/Trigger", "/plan")
+diags, plans = [], []
+node.create_subscription("diagnostic_msgs/msg/DiagnosticArray", "/diagnostics", diags.append, QOS_LATCHED)
+node.create_subscription("mal_msgs/msg/LandingPlan", "/landing_plan", plans.append, QOS_LATCHED)
+assert setp.wait_for_service(20) and getp.wait_for_service(20) and trigger.wait_for_service(20)
+def set_(name, value):
+    param = T.msg("rcl_interfaces/msg/Parameter")(name=name,
+        value=value_to_msg(T.msg("rcl_interfaces/msg/ParameterValue"), value))
+    res = setp.call(T.srv("rcl_interfaces/srv/SetParameters").Request(parameters=[param]), timeout_sec=20)
+    return [res.results[0].successful, res.results[0].reason]
+def get(name):
+    res = getp.call(T.srv("rcl_interfaces/srv/GetParameters").Request(names=[name]), timeout_sec=20)
+    return value_from_msg(res.values[0])
+def settle(seconds):
+    end = time.monotonic() + seconds
+    while time.monotonic() < end or not plans or not diags:
+        node.spin_once(0.05)
+Trigger = T.srv("std_srvs/srv/Trigger")
+settle(0.5)
+out = {"stamp_before": msg_to_time(plans[-1]), "bad": set_("replan_period_s", -1.0),
+       "after_bad": get("replan_period_s"), "set_iter": set_("max_nlp_iterations", 1)}
+res = trigger.call(Trigger.Request(), timeout_sec=150)
+out["failed"] = [res.success, res.message]
+settle(1.0)
+out["diag_failed"] = [byte_value(diags[-1].status[0].level), diags[-1].status[0].message]
+out["stamp_after_fail"] = msg_to_time(plans[-1])
+out["set_back"] = set_("max_nlp_iterations", 3000)
+res = trigger.call(Trigger.Request(), timeout_sec=150)
+out["recovered"] = [res.success, res.message]
+settle(1.0)
+out["diag_recovered"] = byte_value(diags[-1].status[0].level)
+print("PARAMS " + json.dumps(out), flush=True)
+"""
+
 # Publisher of bad input (and one valid no-fly zone) from a separate process.
 BAD_INPUT = """
 import math, os, time
@@ -167,6 +217,15 @@ for _ in range(%(repeat)d):
     bad_frame.header.frame_id = "map"
     pub.publish(bad_frame)
     pub.publish(state("KTS1", speed=250.0 * 1852.0))
+    if %(issue10)r:  # plausible alone, implausible in context (issue 10)
+        pub.publish(planner_to_aircraft_state(T, "GOOD1", 1.0e9 + 100.0, [0.5, 5.0, 0.2, 0.0, -1.57], 0.04))
+        pub.publish(state("OLD1"))  # 100 s older than GOOD1 (track_timeout_s 30)
+        future = planner_to_aircraft_state(T, "FUT1", time.time() + 3600.0, [0.5, 5.0, 0.2, 0.0, -1.57], 0.04)
+        pub.publish(future)
+        low = state("LOW1")
+        low.position.z = -600.0
+        pub.publish(low)
+        pub.publish(state("A1", speed=0.4 * 1852.0))  # ten times the scenario's speed of A1
     time.sleep(0.2)
 zone = lambda **kw: T.msg("mal_msgs/msg/NoFlyZone")(name=kw.get("name", "storm"),
     center=T.msg("geometry_msgs/msg/Point")(x=0.0, y=8000.0, z=300.0),
@@ -179,17 +238,19 @@ print("published", flush=True)
 """
 
 
-def test_replay_to_paths_services_and_latched(snippet, tmp_path: Path) -> None:  # noqa: F811
-    """Replayed radar -> planner -> paths in a separate subscriber; both services; late subscriber; NaN input."""
-    planner = start_planner(snippet, params_file(tmp_path))
+def test_replay_to_paths_services_and_latched(backend_snippet, snippet, tmp_path: Path) -> None:  # noqa: F811
+    """Replayed radar -> planner -> paths in a separate subscriber; both services; late subscriber; NaN input;
+    parameters at run time; a failed plan keeps the last plan and the next trigger plans again."""
+    planner = start_planner(backend_snippet, params_file(tmp_path))
     with dump_on_failure(planner=planner):
         wait_for(planner, "planner ready", 30)
         listener = snippet(PATH_LISTENER)
         listener.wait_for_line("listening")
-        start_replay(snippet, 2.0)
+        start_replay(backend_snippet, 2.0)
         wait_for(planner, "plan #1", 150)
         result = json.loads(listener.wait_for_line("RESULT ", 30)[len("RESULT "):])
 
+        assert result["diag_plans"] == "1"  # the first DiagnosticArray counts its own plan
         assert result["plan_frame"] == "runway"
         assert BAG_T0 < result["plan_stamp"] < BAG_T0 + 20.0
         assert sorted(result["order"]) == ["A1", "A2", "A3"]
@@ -213,7 +274,7 @@ def test_replay_to_paths_services_and_latched(snippet, tmp_path: Path) -> None: 
 
         # Services from a client process; radar callbacks keep running while the service waits for its plan.
         go = tmp_path / "go"
-        bad = snippet(BAD_INPUT % {"repeat": 1, "go": str(go), "nfz": False})
+        bad = snippet(BAD_INPUT % {"repeat": 1, "go": str(go), "nfz": False, "issue10": False})
         bad.wait_for_line("ready", 30)
         client = snippet(CLIENT % {"scenario": str(SCENARIO), "t0": BAG_T0})
         client.wait_for_line("calling", 30)
@@ -230,14 +291,26 @@ def test_replay_to_paths_services_and_latched(snippet, tmp_path: Path) -> None: 
         assert landing["plan_stamp"] == pytest.approx(BAG_T0 + 30.0)
         assert landing["first_pose_stamp"] == pytest.approx(BAG_T0 + 30.0)
 
-        # A late subscriber still gets the latched plan and paths (the explicit-state plan, published last;
-        # A2, no longer planned, has an empty path).
+        # A late subscriber still gets the latched radar plan and paths: the explicit-state (what-if) plan was
+        # answered in the response only and did not clobber the plan other nodes follow.
         late = snippet(PATH_LISTENER)
         late_result = json.loads(late.wait_for_line("RESULT ", 30)[len("RESULT "):])
-        assert late_result["plan_stamp"] == pytest.approx(BAG_T0 + 30.0)
-        assert sorted(late_result["order"]) == ["A1", "A3"]
-        assert late_result["paths"]["A2"]["n"] == 0
-        assert late_result["paths"]["A1"]["stamps"][0] == pytest.approx(BAG_T0 + 30.0)
+        assert late_result["plan_stamp"] < BAG_T0 + 25.0
+        assert sorted(late_result["order"]) == ["A1", "A2", "A3"]
+        assert all(late_result["paths"][cs]["n"] > 10 for cs in ("A1", "A2", "A3"))
+        assert late_result["paths"]["A1"]["stamps"][0] == pytest.approx(late_result["plan_stamp"])
+
+        # Parameters at run time: a refused value keeps the old one; a failed plan keeps the last plan
+        # published and reports FAILED; the next trigger plans again.
+        params = json.loads(snippet(PARAMS_CLIENT).wait_for_line("PARAMS ", 300)[len("PARAMS "):])
+        assert params["bad"] == [False, "parameter 'replan_period_s': must be >= 0, got -1.0"]
+        assert params["after_bad"] == 0.0 and params["set_iter"] == [True, ""]
+        assert params["failed"][0] is False and "keeping the last plan" in params["failed"][1]
+        assert params["diag_failed"][0] == 2 and params["diag_failed"][1].startswith("FAILED: ")
+        assert params["stamp_after_fail"] == params["stamp_before"]
+        assert params["set_back"] == [True, ""]
+        assert params["recovered"][0] is True, params
+        assert params["diag_recovered"] in (0, 1)
         assert planner.proc.poll() is None
         if os.environ.get("MAL_TEST_VERBOSE"):
             while not planner.lines.empty():
@@ -245,18 +318,18 @@ def test_replay_to_paths_services_and_latched(snippet, tmp_path: Path) -> None: 
             print("\n".join(line for line in planner.output if "plan #" in line or "requested" in line))
 
 
-def test_restart_in_the_middle_of_a_replay(snippet, tmp_path: Path) -> None:  # noqa: F811
+def test_restart_in_the_middle_of_a_replay(backend_snippet, snippet, tmp_path: Path) -> None:  # noqa: F811
     """Kill the planner while the bag plays; a new planner picks the radar up and publishes a new plan."""
     params = params_file(tmp_path)
-    first = start_planner(snippet, params)
+    first = start_planner(backend_snippet, params)
     wait_for(first, "planner ready", 30)
     started = time.monotonic()
-    start_replay(snippet, 0.5)  # 40 s of wall time
+    start_replay(backend_snippet, 0.5)  # 40 s of wall time
     wait_for(first, "plan #1", 150)
     time.sleep(max(0.0, 14.0 - (time.monotonic() - started)))  # at least 7 s into the bag
     first.proc.kill()
     first.proc.wait()
-    second = start_planner(snippet, params)
+    second = start_planner(backend_snippet, params)
     wait_for(second, "planner ready", 30)
     line = wait_for(second, "first radar message", 30)
     first_stamp = float(line.rsplit("t=", 1)[1].split(")")[0])
@@ -268,21 +341,27 @@ def test_restart_in_the_middle_of_a_replay(snippet, tmp_path: Path) -> None:  # 
     assert sorted(result["paths"]) == ["A1", "A2", "A3"]
 
 
-def test_bad_input_is_logged_and_ignored(snippet, tmp_path: Path) -> None:  # noqa: F811
-    """NaN, wrong frame, absurd speed, invalid no-fly zone and a bad parameter: one log line each, node lives."""
+def test_bad_input_is_logged_and_ignored(backend_snippet, snippet, tmp_path: Path) -> None:  # noqa: F811
+    """NaN, wrong frame, absurd speed, implausible/stale/future/below-ground tracks, invalid no-fly zone and a
+    bad parameter: one log line each, node lives."""
     params = params_file(tmp_path, "    mesh_tol: -1.0\n    min_aircraft: 5\n    bogus: 1\n")
-    planner = start_planner(snippet, params)
+    planner = start_planner(backend_snippet, params)
     wait_for(planner, "planner ready", 30)
     text = "\n".join(planner.output)
     assert "parameter 'mesh_tol'" in text and "using the default" in text
     assert "unknown parameter 'bogus'" in text
-    snippet(BAD_INPUT % {"repeat": 3, "go": "", "nfz": True}).wait_for_line("published", 30)
+    snippet(BAD_INPUT % {"repeat": 3, "go": "", "nfz": True, "issue10": True}).wait_for_line("published", 30)
     wait_for(planner, "added no-fly zone 'storm'", 20)
     text = "\n".join(planner.output)
     assert "'NAN1'" in text and "non-finite x" in text
     assert "'FRM1'" in text and "unknown frame 'map'" in text
     assert "'KTS1'" in text and "m/s (units?)" in text
     assert "bad NoFlyZone" in text and "p must be an even integer" in text
+    assert "'A1'" in text and "implausible for this aircraft" in text
+    assert "'LOW1'" in text and "below the airspace floor" in text
+    assert "'FUT1'" in text and "in the future" in text
+    assert "'OLD1'" in text and "stale stamp" in text
+    assert "'GOOD1'" not in text
     assert sum("'NAN1'" in line for line in planner.output) == 1  # rate-limited: one line, not a flood
     client = snippet("""
 from mal_planner.ros.transport import create_node
@@ -292,7 +371,7 @@ assert cli.wait_for_service(20)
 res = cli.call(node.types.srv("std_srvs/srv/Trigger").Request(), timeout_sec=30)
 print("TRIGGER", res.success, res.message, flush=True)
 """)
-    assert client.wait_for_line("TRIGGER", 40) == "TRIGGER False no radar tracks yet"
+    assert client.wait_for_line("TRIGGER", 40) == "TRIGGER False 1 aircraft tracked (min_aircraft 5): nothing to plan"
     assert planner.proc.poll() is None
 
 
@@ -329,12 +408,37 @@ def test_plan_scenario_extrapolates_and_adds_unknown_aircraft() -> None:
     moved = inputs.scenario.aircraft_by_callsign("A1").state0[:3] - a1.state0[:3]
     assert np.linalg.norm(moved) == pytest.approx(2.0 * a1.speed)
     x9 = inputs.scenario.aircraft_by_callsign("X9")
-    assert x9.speed == pytest.approx(0.05) and x9.landing_time is None
-    # a missing landing time (X9) hands all landing times to the sequencer
-    assert inputs.scenario.aircraft_by_callsign("A1").landing_time is None
+    assert x9.speed == pytest.approx(0.05)
+    # an unknown aircraft (X9) keeps A1's fixed landing time and lands after it, spaced (issue 10)
+    assert inputs.scenario.aircraft_by_callsign("A1").landing_time == pytest.approx(153.0)
+    assert 153.0 + sc.landing_spacing_s <= x9.landing_time <= 153.0 + sc.max_landing_spacing_s
     only_a1 = build_plan_scenario(sc, {"A1": tracks["A1"]}, 12.0, landing_shift=2.0)
     assert only_a1.scenario.aircraft[0].landing_time == pytest.approx(153.0)
 
 
 if __name__ == "__main__":
     sys.exit(pytest.main([__file__, "-v"]))
+
+
+def test_check_track_rejects_tracks_implausible_in_context() -> None:
+    """Issue 10: plausible alone, but not for this aircraft (speed), below ground, stale or in the future."""
+    import numpy as np
+
+    from mal_planner.ros.state_store import Track, check_track
+    from mal_planner.scenario import load_scenario
+
+    sc = load_scenario(SCENARIO)
+    a1 = sc.aircraft_by_callsign("A1")
+
+    def check(stamp: float = 100.0, z: float = 0.2, speed: float = a1.speed) -> str | None:
+        track = Track("A1", stamp, np.array([0.5, 5.0, z, 0.0, -1.57]), speed)
+        return check_track(track, "runway", "runway", sc.airspace, expected_speed=a1.speed, newest=120.0,
+                           timeout_s=30.0, now=110.0)
+
+    assert check() is None
+    assert check(speed=a1.speed * 1.5) is None  # generous tolerance
+    assert "implausible" in (check(speed=a1.speed * 3) or "") and "implausible" in (check(speed=a1.speed / 3) or "")
+    assert "below the airspace floor" in (check(z=-0.3) or "")
+    assert check(z=-0.02) is None  # radar noise near the runway
+    assert "stale stamp" in (check(stamp=80.0) or "")
+    assert "in the future" in (check(stamp=130.0) or "")

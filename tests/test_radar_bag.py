@@ -11,7 +11,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-from dds_support import SRC, dds_env  # noqa: F401  (fixture)
+from dds_support import SRC, dds_env  # noqa: F401  (fixture; the replay/record/radar-sim tests run on both backends)
 
 from mal_planner.ros.bagio import MsgTypes, open_reader, serialize
 from mal_planner.ros.convert import (
@@ -135,9 +135,25 @@ def test_make_radar_bag_is_deterministic(tmp_path: Path) -> None:
 
 
 # -- nodes on DDS -----------------------------------------------------------------------------------------
+_started: list[subprocess.Popen[str]] = []
+
+
+@pytest.fixture(autouse=True)
+def _no_leftover_processes():
+    """Kill any replay/record process a test left running (e.g. after a failed assertion)."""
+    yield
+    while _started:
+        proc = _started.pop()
+        if proc.poll() is None:
+            proc.kill()
+            proc.communicate()
+
+
 def _start(env: dict[str, str], module: str, *args: str) -> subprocess.Popen[str]:
-    return subprocess.Popen([sys.executable, "-m", f"mal_planner.ros.{module}", *args], env=env,
+    proc = subprocess.Popen([sys.executable, "-m", f"mal_planner.ros.{module}", *args], env=env,
                             stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)  # fmt: skip
+    _started.append(proc)
+    return proc
 
 
 def _finish(proc: subprocess.Popen[str], timeout: float = 30.0) -> tuple[int, str, str]:
@@ -150,7 +166,7 @@ def _finish(proc: subprocess.Popen[str], timeout: float = 30.0) -> tuple[int, st
     return proc.returncode, out, err
 
 
-def test_replay_publishes_bag(tmp_path: Path, dds_env: dict[str, str]) -> None:  # noqa: F811
+def test_replay_publishes_bag(tmp_path: Path, backend_env: dict[str, str]) -> None:
     from mal_planner.ros.transport import create_node
 
     bag = _make_bag(tmp_path / "radar.db3", "sqlite3")
@@ -159,7 +175,7 @@ def test_replay_publishes_bag(tmp_path: Path, dds_env: dict[str, str]) -> None: 
         got = {t: [] for t in topics}
         for topic in topics:
             node.create_subscription(STATE, topic, got[topic].append, 10)
-        proc = _start(dds_env, "replay", str(bag), "--rate", "10", "--wait-for-subscribers", "15")
+        proc = _start(backend_env, "replay", str(bag), "--rate", "10", "--wait-for-subscribers", "15")
         deadline = time.monotonic() + 30
         while proc.poll() is None and time.monotonic() < deadline:
             node.spin_once(0.05)
@@ -176,14 +192,14 @@ def test_replay_publishes_bag(tmp_path: Path, dds_env: dict[str, str]) -> None: 
     assert msg_to_time(got["/aircraft/A2/state"][-1]) - msg_to_time(first) == pytest.approx(20.0)
 
 
-def test_replay_restamp(tmp_path: Path, dds_env: dict[str, str]) -> None:  # noqa: F811
+def test_replay_restamp(tmp_path: Path, backend_env: dict[str, str]) -> None:
     from mal_planner.ros.transport import create_node
 
     bag = _make_bag(tmp_path / "radar.mcap")
     with create_node("listener", backend="cyclone") as node:
         got: list = []
         node.create_subscription(STATE, "/aircraft/A1/state", got.append, 100)
-        proc = _start(dds_env, "replay", str(bag), "--rate", "0", "--restamp", "--topics", "aircraft/A1/state",
+        proc = _start(backend_env, "replay", str(bag), "--rate", "0", "--restamp", "--topics", "aircraft/A1/state",
                       "--wait-for-subscribers", "15")  # fmt: skip
         deadline = time.monotonic() + 30
         while len(got) < N_STEPS and time.monotonic() < deadline:
@@ -206,7 +222,7 @@ def test_replay_bad_bag(tmp_path: Path, dds_env: dict[str, str], bad: str) -> No
     assert len(lines) == 1 and str(path) in lines[0] and lines[0].startswith("replay: ")
 
 
-def test_record_until_sigterm(tmp_path: Path, dds_env: dict[str, str]) -> None:  # noqa: F811
+def test_record_until_sigterm(tmp_path: Path, backend_env: dict[str, str]) -> None:
     from mal_planner.ros.transport import QOS_LATCHED, create_node
 
     out = tmp_path / "rec"
@@ -215,7 +231,7 @@ def test_record_until_sigterm(tmp_path: Path, dds_env: dict[str, str]) -> None: 
         path_pub = node.create_publisher("nav_msgs/msg/Path", "aircraft/A1/path", QOS_LATCHED)
         path_pub.publish(path_msg(node.types, "A1", 5.0, [0.0, 1.0], np.zeros((2, 5))))
         pub = node.create_publisher(STATE, "radar/tracks", 10)
-        proc = _start(dds_env, "record", str(out), "--topics", "radar/tracks", "--callsigns", "A1")
+        proc = _start(backend_env, "record", str(out), "--topics", "radar/tracks", "--callsigns", "A1")
         deadline = time.monotonic() + 20
         while pub.get_subscription_count() == 0 and time.monotonic() < deadline:
             time.sleep(0.05)
@@ -253,7 +269,7 @@ def test_record_bad_input(tmp_path: Path, dds_env: dict[str, str]) -> None:  # n
     assert not (tmp_path / "x").exists()
 
 
-def test_radar_sim_publishes_every_callsign(dds_env: dict[str, str]) -> None:  # noqa: F811
+def test_radar_sim_publishes_every_callsign(backend_env: dict[str, str]) -> None:
     from mal_planner.ros.transport import create_node
 
     with create_node("listener", backend="cyclone") as node:
@@ -261,7 +277,7 @@ def test_radar_sim_publishes_every_callsign(dds_env: dict[str, str]) -> None:  #
         got = {t: [] for t in topics}
         for topic in topics:
             node.create_subscription(STATE, topic, got[topic].append, 10)
-        proc = _start(dds_env, "radar_sim", "--scenario", str(SCENARIO), "--rate", "10", "--duration", "4",
+        proc = _start(backend_env, "radar_sim", "--scenario", str(SCENARIO), "--rate", "10", "--duration", "4",
                       "--noise-m", "2", "--seed", "3")  # fmt: skip
         deadline = time.monotonic() + 30
         while proc.poll() is None and time.monotonic() < deadline:
@@ -310,3 +326,18 @@ def test_radar_simulator_level_flight_and_plan() -> None:
     np.testing.assert_allclose(sim.tracks[0].state, [0.0, 2.5, 0.125, 0.0, -1.55], atol=1e-9)
     sim.step_to(140.0)  # past the plan: level flight from the last state
     assert sim.tracks[0].state[1] < 2.0
+
+
+def test_bag_io_does_not_load_cyclonedds() -> None:
+    """Replay and record on the rclpy backend must not load a second Cyclone library: reading, (de)serializing
+    and typestore use of bagio/replay/record import no cyclonedds module."""
+    code = (
+        "import sys\n"
+        "import mal_planner.ros.bagio as b, mal_planner.ros.replay, mal_planner.ros.record\n"
+        f"r = b.open_reader({str(SRC.parent / 'data' / 'thesis_radar.mcap')!r})\n"
+        "c, t, raw = next(iter(r.messages()))\n"
+        "assert b.serialize(r.deserialize(raw, c.msgtype), c.msgtype) == bytes(raw)\n"
+        "print(sorted(m for m in sys.modules if m.startswith('cyclonedds')))\n"
+    )
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=60, check=True)
+    assert out.stdout.strip() == "[]", out.stdout

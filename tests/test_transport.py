@@ -1,4 +1,6 @@
-"""Built-in Cyclone DDS backend: real DDS on loopback between processes, as a ROS 2 node would see us."""
+"""Transport on real DDS (loopback) between processes: the node under test in a child process runs on each
+backend (``backend_snippet``: built-in Cyclone, or rclpy on the real ROS 2 Jazzy); the test side is always
+the built-in backend, so the rclpy runs are interop checks as well."""
 
 import time
 from dataclasses import dataclass
@@ -6,7 +8,6 @@ from pathlib import Path
 
 import pytest
 from cyclonedds.idl import IdlStruct
-from dds_support import dds_env, snippet  # noqa: F401  (fixtures)
 
 from mal_planner.ros.transport import QOS_LATCHED, create_node, load_params_file, resolve_name
 
@@ -22,7 +23,7 @@ class String(IdlStruct, typename="std_msgs::msg::dds_::String_"):
 
 TALKER = """
 from mal_planner.ros.transport import create_node
-node = create_node("talker", "atc", backend="cyclone")
+node = create_node("talker", "atc", backend="auto")
 String = node.types.msg("std_msgs/msg/String")
 pub = node.create_publisher("std_msgs/msg/String", "chatter", 10)
 count = [0]
@@ -42,8 +43,8 @@ def spin_until(node, predicate, timeout: float = 10.0) -> bool:
     return predicate()
 
 
-def test_pub_sub_between_processes(snippet) -> None:  # noqa: F811
-    snippet(TALKER).wait_for_line("ready")
+def test_pub_sub_between_processes(backend_snippet) -> None:
+    backend_snippet(TALKER).wait_for_line("ready")
     with create_node("listener", "atc", backend="cyclone") as node:
         got: list[str] = []
         sub = node.create_subscription(
@@ -54,14 +55,14 @@ def test_pub_sub_between_processes(snippet) -> None:  # noqa: F811
         assert got[0].startswith("hello ")
 
 
-def test_raw_cyclonedds_reader_sees_ros_topic(snippet) -> None:  # noqa: F811
+def test_raw_cyclonedds_reader_sees_ros_topic(backend_snippet) -> None:
     """A plain DDS reader (hand-written IdlStruct) receives our rt/ topic, like a ROS 2 node would."""
     from cyclonedds.core import Policy, Qos
     from cyclonedds.domain import DomainParticipant
     from cyclonedds.sub import DataReader
     from cyclonedds.topic import Topic
 
-    snippet(TALKER).wait_for_line("ready")
+    backend_snippet(TALKER).wait_for_line("ready")
     dp = DomainParticipant(int(__import__("os").environ["ROS_DOMAIN_ID"]))
     reader = DataReader(dp, Topic(dp, "rt/atc/chatter", String), qos=Qos(Policy.Reliability.Reliable(0)))
     samples = []
@@ -78,7 +79,7 @@ def test_raw_cyclonedds_reader_sees_ros_topic(snippet) -> None:  # noqa: F811
 
 TRIGGER_SERVER = """
 from mal_planner.ros.transport import create_node
-node = create_node("server", backend="cyclone")
+node = create_node("server", backend="auto")
 def handle(request, response):
     response.success = True
     response.message = "triggered"
@@ -89,8 +90,8 @@ node.spin()
 """
 
 
-def test_trigger_service_between_processes(snippet) -> None:  # noqa: F811
-    snippet(TRIGGER_SERVER).wait_for_line("ready")
+def test_trigger_service_between_processes(backend_snippet) -> None:
+    backend_snippet(TRIGGER_SERVER).wait_for_line("ready")
     with create_node("caller", backend="cyclone") as node:
         client = node.create_client("std_srvs/srv/Trigger", "trigger")
         assert client.wait_for_service(10.0)
@@ -101,7 +102,7 @@ def test_trigger_service_between_processes(snippet) -> None:  # noqa: F811
 
 PLAN_SERVER = """
 from mal_planner.ros.transport import create_node
-node = create_node("planner", "atc", backend="cyclone")
+node = create_node("planner", "atc", backend="auto")
 T = node.types
 def handle(request, response):
     plan_cls = T.msg("mal_msgs/msg/AircraftPlan")
@@ -121,8 +122,8 @@ node.spin()
 """
 
 
-def test_plan_landing_service_between_processes(snippet) -> None:  # noqa: F811
-    snippet(PLAN_SERVER).wait_for_line("ready")
+def test_plan_landing_service_between_processes(backend_snippet) -> None:
+    backend_snippet(PLAN_SERVER).wait_for_line("ready")
     with create_node("atc_client", backend="cyclone") as node:
         srv = node.types.srv("mal_msgs/srv/PlanLanding")
         state = node.types.msg("mal_msgs/msg/AircraftState")
@@ -139,10 +140,10 @@ def test_plan_landing_service_between_processes(snippet) -> None:  # noqa: F811
         assert response.paths[1].poses[0].pose.position.x == -15000.0
 
 
-def test_call_from_other_thread_while_spinning(snippet) -> None:  # noqa: F811
+def test_call_from_other_thread_while_spinning(backend_snippet) -> None:
     import threading
 
-    snippet(TRIGGER_SERVER).wait_for_line("ready")
+    backend_snippet(TRIGGER_SERVER).wait_for_line("ready")
     with create_node("threaded", backend="cyclone") as node:
         client = node.create_client("std_srvs/srv/Trigger", "/trigger")
         spinner = threading.Thread(target=node.spin, daemon=True)
@@ -156,7 +157,7 @@ def test_call_from_other_thread_while_spinning(snippet) -> None:  # noqa: F811
 
 LATCHED = """
 from mal_planner.ros.transport import QOS_LATCHED, create_node
-node = create_node("radar", backend="cyclone")
+node = create_node("radar", backend="auto")
 pub = node.create_publisher("std_msgs/msg/String", "/latched", QOS_LATCHED)
 for i in range(3):
     pub.publish(node.types.msg("std_msgs/msg/String")(data=f"state {i}"))
@@ -165,8 +166,8 @@ node.spin()
 """
 
 
-def test_late_joiner_gets_last_latched_sample(snippet) -> None:  # noqa: F811
-    snippet(LATCHED).wait_for_line("published")
+def test_late_joiner_gets_last_latched_sample(backend_snippet) -> None:
+    backend_snippet(LATCHED).wait_for_line("published")
     time.sleep(0.3)
     with create_node("late", backend="cyclone") as node:
         got: list[str] = []
@@ -253,7 +254,7 @@ def test_name_resolution() -> None:
 REENTRANT_SERVER = """
 import threading
 from mal_planner.ros.transport import create_node
-node = create_node("waiter", backend="cyclone")
+node = create_node("waiter", backend="auto")
 released = threading.Event()
 node.create_subscription("std_msgs/msg/String", "release", lambda msg: released.set(), 10)
 def handle(request, response):
@@ -268,8 +269,8 @@ node.spin()
 """
 
 
-def test_reentrant_service_does_not_block_the_node(snippet) -> None:  # noqa: F811
-    snippet(REENTRANT_SERVER).wait_for_line("ready")
+def test_reentrant_service_does_not_block_the_node(backend_snippet) -> None:
+    backend_snippet(REENTRANT_SERVER).wait_for_line("ready")
     with create_node("releaser", backend="cyclone") as node:
         srv = node.types.srv("std_srvs/srv/Trigger")
         client = node.create_client(srv, "wait")
@@ -284,3 +285,60 @@ def test_reentrant_service_does_not_block_the_node(snippet) -> None:  # noqa: F8
             node.spin_until_future_complete(future, 0.2)
         response = future.result(timeout=0)
         assert response.success and response.message == "released"
+
+
+def test_parameter_services_follow_rclpy() -> None:
+    """Built-in backend, no ROS needed: the rcl_interfaces parameter services answer like rclpy's, a callback
+    can refuse a value (nothing changes), and /parameter_events reports declared and changed parameters."""
+    import threading
+
+    from mal_planner.ros.transport._common import value_from_msg, value_to_msg
+    from mal_planner.ros.transport._node_interfaces import list_parameters
+
+    assert list_parameters(["a", "b.c", "b.d.e"], [], 0) == (["a", "b.c", "b.d.e"], ["b", "b.d"])
+    assert list_parameters(["a", "b.c", "b.d.e"], [], 1) == (["a"], [])
+    assert list_parameters(["a", "b.c", "b.d.e"], ["b"], 1) == (["b.c"], ["b"])
+    with create_node("params_node", "atc", backend="cyclone") as server, \
+            create_node("param_caller", backend="cyclone", start_parameter_services=False) as caller:
+        server.declare_parameter("rate", 5.0, "update rate [Hz]")
+        server.declare_parameter("solver.tol", 1e-6)
+        server.add_on_set_parameters_callback(
+            lambda ps: next(((False, f"{p.name} must be > 0") for p in ps if p.value <= 0), (True, "")))
+        T = caller.types
+        events: list = []
+        caller.create_subscription("rcl_interfaces/msg/ParameterEvent", "/parameter_events", events.append, 100)
+        spinner = threading.Thread(target=server.spin, daemon=True)
+        spinner.start()
+
+        def call(srv: str, **fields):
+            cli = caller.create_client(f"rcl_interfaces/srv/{srv}", f"/atc/params_node/{srv_name(srv)}")
+            assert cli.wait_for_service(10.0)
+            return cli.call(T.srv(f"rcl_interfaces/srv/{srv}").Request(**fields), timeout_sec=10.0)
+
+        def param(name, value):
+            return T.msg("rcl_interfaces/msg/Parameter")(
+                name=name, value=value_to_msg(T.msg("rcl_interfaces/msg/ParameterValue"), value))
+
+        assert list(call("ListParameters").result.names) == ["rate", "solver.tol"]
+        assert [value_from_msg(v) for v in call("GetParameters", names=["rate", "solver.tol"]).values] == [5.0, 1e-6]
+        assert call("GetParameters", names=["rate", "nope"]).values == []  # rclpy: nothing if one is undeclared
+        assert list(call("GetParameterTypes", names=["rate", "nope"]).types) == [3, 0]
+        assert call("DescribeParameters", names=["rate"]).descriptors[0].description == "update rate [Hz]"
+        results = call("SetParameters", parameters=[param("rate", 10.0), param("rate", -1.0), param("rate", 1)]).results
+        assert [(r.successful, r.reason) for r in results] == [
+            (True, ""), (False, "rate must be > 0"),
+            (False, "Wrong parameter type, parameter {rate} is of type {double}, setting it to {integer} is not "
+                    "allowed.")]
+        atomic = call("SetParametersAtomically", parameters=[param("solver.tol", 1e-3), param("rate", 0.0)]).result
+        assert not atomic.successful and server.get_parameter("solver.tol").value == 1e-6  # all or nothing
+        assert server.get_parameter("rate").value == 10.0
+        assert spin_until(caller, lambda: any(p.name == "rate" for e in events for p in e.changed_parameters))
+        changed = [(p.name, value_from_msg(p.value)) for e in events for p in e.changed_parameters]
+        assert changed == [("rate", 10.0)] and all(e.node == "/atc/params_node" for e in events)
+        server.shutdown()
+        spinner.join(5)
+
+
+def srv_name(srv: str) -> str:
+    """``SetParametersAtomically`` -> ``set_parameters_atomically``."""
+    return "".join("_" + c.lower() if c.isupper() else c for c in srv).lstrip("_")

@@ -77,7 +77,7 @@ def test_bank_limit_and_deviation_are_caught(thesis) -> None:
     traj = straight_level("A1", start, -math.pi / 2, 10.0, controls=(1.2, 1.0))
     report = verify(sc, [traj])
     text = " | ".join(report.reasons)
-    assert "bank angle reaches 50.19 deg" in text
+    assert "bank angle reaches 50.194 deg" in text
     assert "re-integrated path deviates" in text
     assert report.aircraft[0].max_position_deviation_nm > 0.01
 

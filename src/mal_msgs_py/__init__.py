@@ -14,13 +14,36 @@ final, constructible with keyword arguments named like the rclpy message fields.
 from __future__ import annotations
 
 from dataclasses import dataclass
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
-from cyclonedds.idl import IdlStruct
-
-from ._idl import WIRE_HEADER, dds_type_name, get_class, get_wire_class
 from ._interfaces import interface_dir
-from ._store import service_names, type_hash, typestore
+from ._store import service_names, type_description, type_hash, typestore
+
+if TYPE_CHECKING:
+    from cyclonedds.idl import IdlStruct
+
+#: Leading request-header fields of rmw_cyclonedds service samples ({uint64 guid; int64 seq;}).
+WIRE_HEADER = ("rmw_guid", "rmw_seq")
+
+
+def dds_type_name(ros_name: str) -> str:
+    """``pkg/msg/Name`` -> ``pkg::msg::dds_::Name_`` (the DDS type name rmw_cyclonedds_cpp uses)."""
+    pkg, kind, name = ros_name.split("/")
+    return f"{pkg}::{kind}::dds_::{name}_"
+
+
+def get_class(ros_name: str) -> type[IdlStruct]:
+    """IdlStruct class of a message or service part. The cyclonedds classes (and the Cyclone C library) load
+    only here, so that the typestore, hashes and bag (de)serialization work without them (rclpy backend)."""
+    from ._idl import get_class as _get_class
+
+    return _get_class(ros_name)
+
+
+def get_wire_class(ros_part: str) -> type[IdlStruct]:
+    from ._idl import get_wire_class as _get_wire_class
+
+    return _get_wire_class(ros_part)
 
 __all__ = [
     "ServiceType",
@@ -33,6 +56,7 @@ __all__ = [
     "service_names",
     "to_rosbags",
     "from_rosbags",
+    "type_description",
     "type_hash",
     "typestore",
 ]

@@ -11,6 +11,7 @@ from cyclonedds.idl import IdlMeta, IdlStruct
 from cyclonedds.idl import types as t
 from rosbags.interfaces import Nodetype
 
+from . import WIRE_HEADER, dds_type_name
 from ._store import type_hash, typestore
 
 _BASE: dict[str, Any] = {
@@ -24,17 +25,9 @@ _ZERO: dict[str, Any] = {"bool": False, "float32": 0.0, "float64": 0.0, "string"
 #: Non-zero defaults from the .msg files that rosbags' field definitions do not carry.
 _DEFAULTS: dict[str, dict[str, Any]] = {"geometry_msgs/msg/Quaternion": {"w": 1.0}}
 
-#: Leading request-header fields of rmw_cyclonedds service samples ({uint64 guid; int64 seq;}).
-WIRE_HEADER = ("rmw_guid", "rmw_seq")
 
 _lock = threading.RLock()
 _classes: dict[str, type[IdlStruct]] = {}
-
-
-def dds_type_name(ros_name: str) -> str:
-    """``pkg/msg/Name`` -> ``pkg::msg::dds_::Name_`` (the DDS type name rmw_cyclonedds_cpp uses)."""
-    pkg, kind, name = ros_name.split("/")
-    return f"{pkg}::{kind}::dds_::{name}_"
 
 
 def _annotation(desc: Any) -> tuple[Any, Callable[[], Any]]:

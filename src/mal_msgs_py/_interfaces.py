@@ -1,4 +1,9 @@
-"""Locate and parse the ROS 2 interface definitions (.msg/.srv) into rosbags type dictionaries."""
+"""Locate and parse the ROS 2 interface definitions (.msg/.srv) into rosbags type dictionaries.
+
+``mal_msgs`` (ours) and the vendored ROS 2 Jazzy packages the built-in backend needs without a ROS
+installation (``vendor/``: builtin_interfaces, rcl_interfaces, service_msgs, type_description_interfaces;
+Apache-2.0, see ``vendor/README.md``).
+"""
 
 from __future__ import annotations
 
@@ -89,16 +94,28 @@ def srv_typesdict(srv_name: str, text: str) -> Typesdict:
     return out
 
 
+def vendor_dir() -> Path:
+    """Directory of the vendored ROS 2 Jazzy interface packages (``vendor/<package>/{msg,srv}``)."""
+    return Path(__file__).resolve().parent / "vendor"
+
+
+def package_roots() -> dict[str, Path]:
+    """Interface packages parsed at run time: the vendored ROS 2 ones, then ``mal_msgs``."""
+    roots = {p.name: p for p in sorted(vendor_dir().iterdir()) if (p / "msg").is_dir() or (p / "srv").is_dir()}
+    roots[PACKAGE] = interface_dir()
+    return roots
+
+
 def package_typesdicts() -> tuple[Typesdict, list[str]]:
-    """Parse all messages/services of ``mal_msgs`` plus :data:`STD_SRVS`; return (types, service names)."""
-    root = interface_dir()
+    """Parse the messages/services of :func:`package_roots` plus :data:`STD_SRVS`; return (types, service
+    names)."""
     types: Typesdict = {}
+    srv_texts: dict[str, str] = {}
     services: list[str] = []
-    for path in sorted((root / "msg").glob("*.msg")):
-        types.update(_parse(path.read_text(encoding="utf-8"), PACKAGE, path.stem))
-    srv_texts = {
-        f"{PACKAGE}/srv/{p.stem}": p.read_text(encoding="utf-8") for p in (root / "srv").glob("*.srv")
-    }
+    for pkg, root in package_roots().items():
+        for path in sorted(root.glob("msg/*.msg")):
+            types.update(_parse(path.read_text(encoding="utf-8"), pkg, path.stem))
+        srv_texts.update({f"{pkg}/srv/{p.stem}": p.read_text(encoding="utf-8") for p in root.glob("srv/*.srv")})
     srv_texts.update(STD_SRVS)
     for srv_name, text in sorted(srv_texts.items()):
         types.update(srv_typesdict(srv_name, text))

@@ -89,8 +89,7 @@ def _struct(typename: str, refs: dict[str, dict[str, Any]], fielddefs: Any) -> d
 
 
 @cache
-def type_hash(typename: str) -> str:
-    """RIHS01 hash (``RIHS01_<64 hex>``) of a message or service type, as ROS 2 Jazzy computes it."""
+def _description(typename: str) -> str:
     fielddefs = typestore().fielddefs
     refs: dict[str, dict[str, Any]] = {}
     top = _struct(typename, refs, fielddefs)
@@ -98,4 +97,16 @@ def type_hash(typename: str) -> str:
         "type_description": top,
         "referenced_type_descriptions": [v for k, v in sorted(refs.items()) if k != typename],
     }
-    return "RIHS01_" + sha256(json.dumps(desc).encode()).hexdigest()
+    return json.dumps(desc)
+
+
+def type_description(typename: str) -> dict[str, Any]:
+    """rosidl's hashed type description (``type_description``, ``referenced_type_descriptions``; fields with
+    name and type, no default values), as served by ``type_description_interfaces/srv/GetTypeDescription``."""
+    return json.loads(_description(typename))  # a fresh copy each time
+
+
+@cache
+def type_hash(typename: str) -> str:
+    """RIHS01 hash (``RIHS01_<64 hex>``) of a message or service type, as ROS 2 Jazzy computes it."""
+    return "RIHS01_" + sha256(_description(typename).encode()).hexdigest()

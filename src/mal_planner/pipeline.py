@@ -9,8 +9,8 @@ from dataclasses import dataclass, field, replace
 import numpy as np
 
 from mal_planner.deadline import Deadline
-from mal_planner.errors import FailureClass
-from mal_planner.initializer.planners import PlanningFailed
+from mal_planner.errors import FailureClass, InvalidInput
+from mal_planner.initializer.planners import PlanningFailed, known_specs
 from mal_planner.initializer.schedule import check_request
 from mal_planner.initializer.sequencer import InitialPlan, plan_initial
 from mal_planner.landing import LandingOptions, LandingResult
@@ -138,6 +138,9 @@ class Planner:
 
     def __init__(self, options: PlanOptions | None = None) -> None:
         self.options = options or PlanOptions()
+        known = known_specs()
+        if self.options.initializer not in known:  # at start-up, not at the first plan
+            raise InvalidInput(f"initializer: unknown planner {self.options.initializer!r} (known: {', '.join(known)})")
         self._optimizer: LandingOptimizer | None = None
         self.last: PlanResult | None = None
 

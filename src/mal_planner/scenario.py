@@ -398,6 +398,11 @@ def load_scenario(path: str | Path) -> Scenario:
         text = Path(path).read_text(encoding="utf-8")
     except OSError as exc:
         raise ScenarioError(source, "", f"cannot read file ({exc.strerror or exc})") from None
+    except UnicodeDecodeError as exc:
+        raise ScenarioError(source, "", f"not a text (UTF-8) file: byte {exc.start} is 0x{exc.object[exc.start]:02x}"
+                            ) from None
+    if "\x00" in text:
+        raise ScenarioError(source, "", "not a text file (it contains NUL bytes)")
     try:
         data = yaml.safe_load(text)
     except yaml.YAMLError as exc:

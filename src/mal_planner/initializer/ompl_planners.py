@@ -25,6 +25,9 @@ _GEOMETRIC_PLANNERS = (
     "KPIECE1", "BKPIECE1", "LBKPIECE1", "PRM", "PRMstar",
 )
 # Planners that keep improving the path until told to stop; the others return their first solution.
+_THREADED = {"PRM", "PRMstar", "LazyPRM", "LazyPRMstar", "SPARS", "SPARStwo"}
+"""Planners that grow their roadmap in a second thread while solve() polls the termination condition: a
+Python condition would need the GIL that solve() holds (deadlock), so they get OMPL's own timed one."""
 _ANYTIME = {"RRTstar", "InformedRRTstar", "SORRTstar", "AORRTC", "BITstar", "PRM", "PRMstar"}
 
 
@@ -118,7 +121,12 @@ class OmplPlanner(SmoothedSearch):
             return polls[0] >= min(limit[0], self.iteration_cap) or time.perf_counter() > deadline
 
         status = None
-        while polls[0] < self.iteration_cap and time.perf_counter() <= deadline:
+        if self.name in _THREADED:  # OMPL's own timed condition: no Python call from the planner's threads
+            while not ss.haveExactSolutionPath() and time.perf_counter() <= deadline:
+                status = ss.solve(ob.timedPlannerTerminationCondition(min(0.2, self.time_limit)))
+                polls[0] += 1
+        while (self.name not in _THREADED and polls[0] < self.iteration_cap
+               and time.perf_counter() <= deadline):
             limit[0] = polls[0] + budget
             status = ss.solve(ob.PlannerTerminationCondition(stop))
             if ss.haveExactSolutionPath():

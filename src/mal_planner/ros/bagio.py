@@ -10,13 +10,13 @@ from __future__ import annotations
 import fnmatch
 import shutil
 import signal
+import sys
 import tempfile
 import threading
 from collections.abc import Iterable
 from pathlib import Path
 from typing import Any
 
-from cyclonedds.idl import IdlStruct
 from rosbags.interfaces import Qos, QosDurability, QosHistory, QosLiveliness, QosReliability, QosTime
 from rosbags.rosbag2 import StoragePlugin, Writer
 
@@ -141,7 +141,8 @@ def write_bag(
 def serialize(msg: Any, msgtype: str) -> bytes:
     """CDR bytes (with encapsulation header) of a message of either backend."""
     store = mal_msgs_py.typestore()
-    if isinstance(msg, IdlStruct):  # mal_msgs_py class (built-in Cyclone backend)
+    idl = sys.modules.get("cyclonedds.idl")  # never imported here: on rclpy, one Cyclone library is enough
+    if idl is not None and isinstance(msg, idl.IdlStruct):  # mal_msgs_py class (built-in Cyclone backend)
         return bytes(store.serialize_cdr(mal_msgs_py.to_rosbags(msg), msgtype))
     if hasattr(type(msg), "__msgtype__"):  # a rosbags message
         return bytes(store.serialize_cdr(msg, msgtype))

@@ -43,6 +43,17 @@ def time_to_msg(types: Any, t_s: float) -> Any:
     return types.msg("builtin_interfaces/msg/Time")(sec=ns // _NS_PER_S, nanosec=ns % _NS_PER_S)
 
 
+def byte_field(types: Any, value: int) -> Any:
+    """Value for a ``byte`` field (e.g. DiagnosticStatus.level): rclpy wants ``bytes`` of length 1 (an int
+    is accepted but serialized wrongly), the built-in backend an int."""
+    return bytes([value]) if getattr(types, "bytes_for_byte", False) else value
+
+
+def byte_value(value: Any) -> int:
+    """An int from a received ``byte`` field of either backend."""
+    return value[0] if isinstance(value, bytes | bytearray) else int(value)
+
+
 def msg_to_time(msg: Any) -> float:
     """Seconds from a ``Time`` message, or from the stamp of a ``Header`` or of any message with a header."""
     if hasattr(msg, "header"):

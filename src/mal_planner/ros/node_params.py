@@ -103,6 +103,8 @@ PARAMETERS: dict[str, tuple[Any, Check, str]] = {
     "figures": ("png", _figures, "figures rendered into output_dir in a background process after each plan: "
                 "none, png, html (interactive plan.html) or all (true/false: png/none)"),
     "service_timeout_s": (600.0, _float(positive=True), "longest a service call waits for its plan [s]"),
+    "planning_time_limit_s": (0.0, _float(), "wall-clock limit of one plan [s]; when it runs out the best result "
+                              "so far is kept (a failure is reported, the last plan stays); 0 = no limit"),
 }
 
 
@@ -133,6 +135,7 @@ class NodeParams:
     output_dir: str
     figures: str
     service_timeout_s: float
+    planning_time_limit_s: float
 
     def plan_options(self) -> PlanOptions:
         landing = LandingOptions(guess=self.guess, fixed_landing_times=self.fixed_landing_times,  # type: ignore[arg-type]
@@ -141,7 +144,8 @@ class NodeParams:
                                  max_mesh_iterations=self.max_mesh_iterations, refine=self.refine,
                                  output_dt=self.output_dt)
         return PlanOptions(initializer=self.initializer, seed=None if self.seed < 0 else self.seed,
-                           optimize=self.optimize, verify=self.verify, landing=landing)
+                           optimize=self.optimize, verify=self.verify, landing=landing,
+                           time_limit_s=self.planning_time_limit_s or None)
 
 
 assert {f.name for f in fields(NodeParams)} == set(PARAMETERS)
@@ -164,17 +168,38 @@ def read_params_file(path: str | Path | None, node_name: str, namespace: str, lo
     return {k: v for k, v in values.items() if k in PARAMETERS}
 
 
+#: Parameters that only take effect at start-up (the radar subscriptions are created with this QoS).
+READ_ONLY = frozenset({"radar_qos"})
+
+
 def declare_parameters(node: Any, source: str, log: logging.Logger) -> NodeParams:
     """Declare every parameter on ``node`` and validate; a bad value is logged and replaced by its default."""
     values: dict[str, Any] = {}
-    for name, (default, check, _doc) in PARAMETERS.items():
-        raw = node.declare_parameter(name, default).value
+    for name, (default, check, doc) in PARAMETERS.items():
+        raw = node.declare_parameter(name, default, doc + (" (read-only at run time)" if name in READ_ONLY else "")
+                                     ).value
         try:
             values[name] = check(raw)
         except ValueError as exc:
             log.error("parameter %r (%s): %s, got %r; using the default %r", name, source, exc, raw, default)
             values[name] = default
             node.set_parameter(name, default)
+    return NodeParams(**values)
+
+
+def update_params(current: NodeParams, changes: Mapping[str, Any]) -> NodeParams:
+    """``current`` with ``changes`` (a parameter set at run time) applied, all checked like at start-up;
+    ValueError with a one-line reason naming the parameter when one is unknown, read-only or invalid."""
+    values = dict(current.__dict__)
+    for name, raw in changes.items():
+        if name not in PARAMETERS:
+            raise ValueError(f"parameter {name!r}: unknown")
+        if name in READ_ONLY and raw != values[name]:
+            raise ValueError(f"parameter {name!r}: read-only at run time (restart the node to change it)")
+        try:
+            values[name] = PARAMETERS[name][1](raw)
+        except ValueError as exc:
+            raise ValueError(f"parameter {name!r}: {exc}, got {raw!r}") from None
     return NodeParams(**values)
 
 

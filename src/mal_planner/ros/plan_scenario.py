@@ -20,6 +20,8 @@ AIRSPACE_TOL_NM = 0.05
 """Extrapolated states this far outside the airspace are clipped back in; further out they are left out."""
 MIN_TIME_FACTOR = 1.0
 """Fixed landing times shorter than this factor x (straight distance / speed) cannot be met: given up."""
+UNKNOWN_MARGIN_S = 5.0
+"""An aircraft the scenario does not know lands this long after its straight-line time at the earliest."""
 
 
 class NoFlyZoneError(ValueError):
@@ -93,17 +95,31 @@ def build_plan_scenario(base: Scenario, tracks: Mapping[str, Track], plan_start:
             continue
         landing = None if known.landing_time is None else known.landing_time - landing_shift
         aircraft.append(Aircraft(cs, state, known.dynamics, known.limits, known.wake_category or tr.wake, landing))
-    aircraft = _feasible_landing_times(aircraft, base.runway_state[:3])
+    aircraft = _feasible_landing_times(aircraft, base.runway_state[:3], base.landing_spacing_s,
+                                       base.max_landing_spacing_s)
     return PlanInputs(replace(base, aircraft=tuple(aircraft)), plan_start, left_out)
 
 
-def _feasible_landing_times(aircraft: list[Aircraft], runway: np.ndarray) -> list[Aircraft]:
-    """Drop all fixed landing times (the sequencer decides) if one is missing or cannot be met."""
-    times = [a.landing_time for a in aircraft]
-    if all(t is None for t in times):
+def _min_time(a: Aircraft, runway: np.ndarray) -> float:
+    return MIN_TIME_FACTOR * float(np.linalg.norm(a.position - runway)) / a.speed
+
+
+def _feasible_landing_times(aircraft: list[Aircraft], runway: np.ndarray, spacing: float,
+                            max_spacing: float) -> list[Aircraft]:
+    """Keep the fixed landing times of the known aircraft; aircraft without one (not in the scenario) land
+    after them, spaced. Only if that fails, or a fixed time cannot be met, the sequencer decides all."""
+    fixed = [a.landing_time for a in aircraft if a.landing_time is not None]
+    if not fixed:
         return aircraft
-    ok = all(t is not None and t >= MIN_TIME_FACTOR * float(np.linalg.norm(a.position - runway)) / a.speed
-             for a, t in zip(aircraft, times, strict=True))
-    if ok:
-        return aircraft
-    return [replace(a, landing_time=None) for a in aircraft]
+    if not all(a.landing_time is None or a.landing_time >= _min_time(a, runway) for a in aircraft):
+        return [replace(a, landing_time=None) for a in aircraft]
+    out = list(aircraft)
+    last = max(fixed)
+    for i in sorted((i for i, a in enumerate(aircraft) if a.landing_time is None),
+                    key=lambda i: _min_time(aircraft[i], runway)):
+        t = max(last + spacing, _min_time(aircraft[i], runway) + UNKNOWN_MARGIN_S)
+        if t - last > max_spacing:  # cannot be slotted in after the others: the sequencer decides all
+            return [replace(a, landing_time=None) for a in aircraft]
+        out[i] = replace(aircraft[i], landing_time=t)
+        last = t
+    return out

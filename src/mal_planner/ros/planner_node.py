@@ -29,9 +29,9 @@ import numpy as np
 
 from mal_planner.dynamics import bank_angle
 from mal_planner.pipeline import Planner, PlanResult
-from mal_planner.ros.convert import aircraft_state_to_planner, path_msg, time_to_msg
+from mal_planner.ros.convert import aircraft_state_to_planner, byte_field, path_msg, time_to_msg
 from mal_planner.ros.markers import marker_array
-from mal_planner.ros.node_params import NodeParams, declare_parameters, describe, read_params_file
+from mal_planner.ros.node_params import NodeParams, declare_parameters, describe, read_params_file, update_params
 from mal_planner.ros.plan_scenario import NoFlyZoneError, PlanInputs, apply_no_fly_zone, build_plan_scenario
 from mal_planner.ros.state_store import CALLSIGN_RE, Track, TrackStore, check_track
 from mal_planner.ros.transport import QOS_DEFAULT, QOS_LATCHED, QOS_SENSOR_DATA, create_node
@@ -118,6 +118,7 @@ class PlannerNode:
         self._busy = False
         self._stop = False
         self._current: CurrentPlan | None = None
+        self._last_result: PlanResult | None = None
         self._plans = 0
         self._attempts = 0
         self._last_error = ""
@@ -130,6 +131,8 @@ class PlannerNode:
         self._state_subs: dict[str, Any] = {}
         self._published_paths: set[str] = set()
         self._setup_ros()
+        self.node.forward_logs(logging.getLogger("mal_planner"))  # the planner's log lines on /rosout
+        self.node.add_on_set_parameters_callback(self._on_set_parameters)
         self._worker = threading.Thread(target=self._work, name="planner-worker", daemon=True)
         log.info("planner ready: scenario %s (%d aircraft known, %d obstacles), %s", scenario.source,
                  len(scenario.aircraft), len(scenario.obstacles), describe(self.params))
@@ -162,6 +165,28 @@ class PlannerNode:
         self._path_pubs[callsign] = self.node.create_publisher("nav_msgs/msg/Path", f"aircraft/{callsign}/path",
                                                                QOS_LATCHED)
 
+    def _on_set_parameters(self, params: list[Any]) -> tuple[bool, str]:
+        """Parameters set at run time (ros2 param set): checked by node_params, applied at once; a refused
+        value leaves every parameter as it was and the reason goes back to the caller."""
+        changes = {p.name: p.value for p in params}
+        try:
+            new = update_params(self.params, changes)
+        except ValueError as exc:
+            log.error("parameter update refused: %s", exc)
+            return False, str(exc)
+        with self._lock:
+            self.params = new
+            self.out_dir = Path(new.output_dir) if new.output_dir else None
+        log.info("parameters updated: %s", describe(changes))
+        return True, ""
+
+    def _scenario_speed(self, callsign: str) -> float | None:
+        """The scenario's speed of a known aircraft [nm/s] (None for one it does not know)."""
+        try:
+            return float(self.scenario.aircraft_by_callsign(callsign).speed)
+        except KeyError:
+            return None
+
     # -- executor-thread callbacks (cheap) ----------------------------------------------------------
     def _bad(self, key: str, text: str) -> None:
         """Log bad input once per key and 5 s (a 10 Hz stream of bad data gives one line, not a flood)."""
@@ -174,7 +199,9 @@ class PlannerNode:
         try:
             callsign, stamp, state, speed, wake = aircraft_state_to_planner(msg)
             track = Track(callsign, stamp, state, speed, wake)
-            reason = check_track(track, str(msg.header.frame_id), self.params.frame_id, self.scenario.airspace)
+            reason = check_track(track, str(msg.header.frame_id), self.params.frame_id, self.scenario.airspace,
+                                 expected_speed=self._scenario_speed(callsign), newest=self.tracks.latest_stamp(),
+                                 timeout_s=self.params.track_timeout_s, now=time.time())
         except Exception as exc:  # malformed message
             self._bad(topic, f"bad AircraftState on {topic}: {exc} (ignored)")
             return
@@ -315,39 +342,61 @@ class PlannerNode:
         sc = inputs.scenario
         log.info("planning (%s): %d aircraft [%s] from t=%.3f", "; ".join(job.reasons), len(sc.aircraft),
                  ", ".join(a.callsign for a in sc.aircraft), inputs.plan_start)
+        explicit = job.explicit is not None
+        options = self.params.plan_options()
+        if explicit:  # a what-if plan: its own planner, so the radar plan's warm start stays intact
+            planner = Planner(options)
+        else:
+            if self.planner.options != options:
+                log.info("planner options changed: the next plan starts from scratch")
+                self.planner = Planner(options)
+            planner = self.planner
         try:
-            last = self.planner.last
-            result = self.planner.plan(sc, reuse=True, start_time=inputs.plan_start)
+            last = planner.last
+            result = planner.plan(sc, reuse=not explicit, start_time=inputs.plan_start)
             if self.params.optimize and not result.optimized and last is not None and result.initial is last.initial:
                 status = result.landing.status if result.landing else "not run"
                 log.warning("warm replan failed (%s): planning from scratch", status)
-                result = self.planner.plan(sc, reuse=False, start_time=inputs.plan_start)
+                result = planner.plan(sc, reuse=False, start_time=inputs.plan_start)
         except Exception as exc:
-            msg = f"planning failed: {' '.join(str(exc).split()) or type(exc).__name__}"
-            log.error("%s (keeping the last plan)", msg)
             log.debug("planning failed", exc_info=True)
-            self._publish_diagnostics(None, msg)
-            plan = self._landing_plan_msg(None, inputs.plan_start, [a.callsign for a in sc.aircraft])
-            return PlanOutcome(False, msg, plan)
-        if self.params.optimize and not result.optimized and self._current is not None:
-            msg = f"optimizer {result.landing.status if result.landing else 'not run'}"
-            log.error("no optimal plan (%s): keeping the last plan", msg)
-            self._publish_diagnostics(result, f"{msg}; keeping the last plan")
-            return PlanOutcome(False, f"{msg}; keeping the last plan", self._landing_plan_msg(result, inputs.plan_start,
-                                                                                                 result.order),
-                               list(self._path_msgs(result, inputs.plan_start).values()), result)
+            return self._failed(job, inputs, f"planning failed: {' '.join(str(exc).split()) or type(exc).__name__}")
+        if self.params.optimize and not result.optimized and (explicit or self._current is not None):
+            return self._failed(job, inputs, f"optimizer {result.landing.status if result.landing else 'not run'}",
+                                result)
         t_plan = time.perf_counter() - t0
-        plan_msg, path_msgs = self._publish(result, inputs, job)
+        if explicit:  # answered in the response only: the radar plan others follow stays published
+            plan_msg = self._landing_plan_msg(result, inputs.plan_start, result.order)
+            paths = self._path_msgs(result, inputs.plan_start)
+            path_msgs = [paths[cs] for cs in result.order]
+        else:
+            plan_msg, path_msgs = self._publish(result, inputs, job)
         t_pub = time.perf_counter() - t0 - t_plan
         outputs = self._write_outputs(result)
         t_out = time.perf_counter() - t0 - t_plan - t_pub
-        self._plans += 1
         summary = self._summary(result)
         timings = ", ".join(f"{k.removesuffix('_s')} {v:.2f} s" for k, v in result.timings.items())
-        log.info("plan #%d: %s; %s; planned in %.2f s (%s), published in %.2f s, outputs in %.2f s%s",
-                 self._plans, summary, self._status_text(result), t_plan, timings, t_pub, t_out,
-                 f" -> {self.out_dir}" if outputs else "")
+        log.info("%s: %s; %s; planned in %.2f s (%s), published in %.2f s, outputs in %.2f s%s",
+                 "what-if plan (answered, not published)" if explicit else f"plan #{self._plans}", summary,
+                 self._status_text(result), t_plan, timings, t_pub, t_out, f" -> {self.out_dir}" if outputs else "")
         return PlanOutcome(True, f"{self._status_text(result)}: {summary}", plan_msg, path_msgs, result)
+
+    def _failed(self, job: PlanJob, inputs: PlanInputs, reason: str, result: PlanResult | None = None
+                ) -> PlanOutcome:
+        """A failed plan: the last good plan stays published (latched paths and landing_plan); a radar plan
+        publishes FAILED diagnostics with the reason and drops the planner's warm-start state, so that the
+        next trigger plans from scratch. The response carries the reason and FAILED entries."""
+        callsigns = [a.callsign for a in inputs.scenario.aircraft]
+        plan = self._landing_plan_msg(None, inputs.plan_start, callsigns)
+        if job.explicit is None:
+            reason += "; keeping the last plan" if self._current else "; no plan yet"
+            log.error("%s", reason)
+            self.planner = Planner(self.params.plan_options())
+            self._publish_diagnostics(result, f"FAILED: {reason}", failed=True)
+        else:
+            log.error("what-if plan failed: %s", reason)
+        paths = list(self._path_msgs(result, inputs.plan_start).values()) if result is not None else []
+        return PlanOutcome(False, reason, plan, paths, result)
 
     @staticmethod
     def _status_text(result: PlanResult) -> str:
@@ -415,6 +464,8 @@ class PlannerNode:
         trajectories = {tr.callsign: tr for tr in result.trajectories()}
         land = result.landing_times()
         considered = frozenset(a.callsign for a in inputs.scenario.aircraft) | frozenset(inputs.left_out)
+        self._plans += 1
+        self._last_result = result
         self._current = CurrentPlan(plan_start, trajectories, {cs: plan_start + land[cs] for cs in land},
                                     considered, job.explicit is None)
         for cs, msg in paths.items():
@@ -439,18 +490,19 @@ class PlannerNode:
         self.marker_pub.publish(marker_array(self.types, obstacles, self.scenario.gates, trajectories, stamp,
                                              self.params.frame_id))
 
-    def _publish_diagnostics(self, result: PlanResult | None, message: str) -> None:
+    def _publish_diagnostics(self, result: PlanResult | None, message: str, failed: bool = False) -> None:
         T = self.types
 
         def kv(key: str, value: Any) -> Any:
             return T.msg("diagnostic_msgs/msg/KeyValue")(key=key, value=str(value))
 
-        values = [kv("plans", self._plans)]
-        if result is None:
+        values = [kv("plans", self._plans), kv("status", "FAILED" if failed else "OK")]
+        if result is None or failed:
             level = DIAG_ERROR
-        else:
+        if result is not None:
             lr, rep = result.landing, result.verification
-            level = DIAG_OK if result.optimized and rep is not None and rep.verified else DIAG_WARN
+            if not failed:
+                level = DIAG_OK if result.optimized and rep is not None and rep.verified else DIAG_WARN
             values += [kv("order", ",".join(result.order)),
                        kv("solver_status", lr.status if lr else "not run"),
                        kv("solve_time_s", f"{lr.solve_time:.3f}" if lr else "nan"),
@@ -459,8 +511,8 @@ class PlannerNode:
                        kv("reasons", "; ".join(rep.reasons) if rep else "")]
             values += [kv(k, f"{v:.3f}") for k, v in result.timings.items()]
         status = T.msg("diagnostic_msgs/msg/DiagnosticStatus")(
-            level=level, name=f"{self.node.get_name()}: landing plan", message=message, hardware_id="mal_planner",
-            values=values)
+            level=byte_field(T, level), name=f"{self.node.get_name()}: landing plan", message=message,
+            hardware_id="mal_planner", values=values)
         header = T.msg("std_msgs/msg/Header")(stamp=time_to_msg(T, time.time()), frame_id="")
         self.diag_pub.publish(T.msg("diagnostic_msgs/msg/DiagnosticArray")(header=header, status=[status]))
 
@@ -468,7 +520,7 @@ class PlannerNode:
         """``planner_status.json`` in the output folder: plan count, busy flag, last plan (for mal-launch)."""
         if self.out_dir is None:
             return
-        cur, result = self._current, self.planner.last
+        cur, result = self._current, self._last_result
         status: dict[str, Any] = {"plans": self._plans, "attempts": self._attempts, "last_error": self._last_error,
                                   "planning": self._busy, "pending": self._pending(),
                                   "plan_start": cur.plan_start if cur else None, "aircraft": []}
@@ -507,7 +559,8 @@ class PlannerNode:
             try:
                 callsign, stamp, state, speed, wake = aircraft_state_to_planner(msg)
                 track = Track(callsign, stamp, state, speed, wake)
-                reason = check_track(track, str(msg.header.frame_id), self.params.frame_id, self.scenario.airspace)
+                reason = check_track(track, str(msg.header.frame_id), self.params.frame_id, self.scenario.airspace,
+                                     expected_speed=self._scenario_speed(callsign))
             except Exception as exc:
                 reason, callsign = str(exc), "?"
             if reason is None and callsign in explicit:

@@ -41,9 +41,22 @@ def extrapolate(state: np.ndarray, speed: float, dt: float) -> np.ndarray:
                      z + d * math.sin(gamma), gamma, heading])
 
 
+SPEED_FACTOR = 2.0
+"""A known aircraft's track may be this factor slower or faster than its scenario speed, no more."""
+FLOOR_MARGIN_NM = 0.1
+"""Tracks this far below the airspace floor (about 185 m) are taken as bad altitude data."""
+FUTURE_TOLERANCE_S = 10.0
+"""Stamps this far ahead of the node's clock are in the future."""
+
+
 def check_track(track: Track, frame_id: str, expected_frame: str, airspace: np.ndarray | None = None,
-                margin_nm: float = 1.0) -> str | None:
-    """None when the track is usable, else a short reason (NaN, unknown frame/units, absurd values)."""
+                margin_nm: float = 1.0, *, expected_speed: float | None = None, newest: float | None = None,
+                timeout_s: float = 0.0, now: float | None = None) -> str | None:
+    """None when the track is usable, else a short reason (NaN, unknown frame/units, absurd values).
+
+    ``expected_speed``: the scenario's speed of this callsign [nm/s]; ``newest``: the newest stamp held,
+    older than ``timeout_s`` before it is stale; ``now``: the node's clock, for stamps in the future.
+    """
     if not CALLSIGN_RE.match(track.callsign):
         return f"invalid callsign {track.callsign!r}"
     if frame_id and frame_id != expected_frame:
@@ -62,6 +75,16 @@ def check_track(track: Track, frame_id: str, expected_frame: str, airspace: np.n
         if np.any(pos < airspace[:, 0] - margin_nm) or np.any(pos > airspace[:, 1] + margin_nm):
             xyz = ", ".join(f"{v * 1852.0:.1f}" for v in pos)
             return f"position ({xyz}) m is far outside the airspace (units?)"
+        floor = float(airspace[2, 0])
+        if pos[2] < floor - FLOOR_MARGIN_NM:
+            return f"altitude {pos[2] * 1852.0:.0f} m is far below the airspace floor ({floor * 1852.0:.0f} m)"
+    if expected_speed is not None and not expected_speed / SPEED_FACTOR <= track.speed <= expected_speed * SPEED_FACTOR:
+        return (f"speed {track.speed * 1852.0:.1f} m/s is implausible for this aircraft (scenario: "
+                f"{expected_speed * 1852.0:.1f} m/s)")
+    if newest is not None and timeout_s > 0 and track.stamp < newest - timeout_s:
+        return f"stale stamp: {newest - track.stamp:.1f} s older than the newest track (track_timeout_s {timeout_s:g})"
+    if now is not None and track.stamp > now + FUTURE_TOLERANCE_S:
+        return f"stamp {track.stamp:.3f} is {track.stamp - now:.1f} s in the future"
     return None
 
 

@@ -5,8 +5,10 @@
   (rmw_cyclonedds_cpp conventions, ros_discovery_info, RIHS01 type hashes), messages from ``mal_msgs_py``.
 
 The API mirrors rclpy: ``create_publisher``, ``create_subscription``, ``create_service``,
-``create_client`` (``wait_for_service``, ``call``, ``call_async``), ``create_timer``, parameters,
-``get_logger``, ``spin``/``spin_once``/``shutdown``, and ``node.types`` for message classes.
+``create_client`` (``wait_for_service``, ``call``, ``call_async`` returning a concurrent.futures.Future),
+``create_timer``, parameters (``declare_parameter``, ``add_on_set_parameters_callback``; the standard
+parameter services on both backends), ``get_logger``/``forward_logs`` (/rosout),
+``spin``/``spin_once``/``shutdown``, and ``node.types`` for message classes.
 """
 
 from __future__ import annotations
@@ -54,15 +56,19 @@ def create_node(
     backend: str = "auto",
     parameter_overrides: dict[str, Any] | None = None,
     params_file: str | Path | None = None,
+    start_parameter_services: bool = True,
 ) -> Any:
     """Create a node.
 
     ``backend``: ``"auto"`` (``$MAL_ROS_BACKEND`` if set, else rclpy when importable, else cyclone),
     ``"rclpy"`` or ``"cyclone"``. ``params_file``: ROS 2 params YAML; ``parameter_overrides`` win over it.
+    ``start_parameter_services``: offer the parameter and type-description services, /parameter_events and
+    /rosout like every ROS 2 node (as rclpy's option of that name).
     """
     if backend == "auto":
         backend = os.environ.get("MAL_ROS_BACKEND", "") or available_backends()[0]
-    kwargs: dict[str, Any] = {"parameter_overrides": parameter_overrides, "params_file": params_file}
+    kwargs: dict[str, Any] = {"parameter_overrides": parameter_overrides, "params_file": params_file,
+                              "start_parameter_services": start_parameter_services}
     if backend == "rclpy":
         from .rclpy_backend import RclpyNode
 

@@ -4,7 +4,8 @@ from __future__ import annotations
 
 import logging
 import re
-from collections.abc import Mapping
+import threading
+from collections.abc import Callable, Mapping
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
@@ -20,6 +21,8 @@ class QoSProfile:
     reliable: bool = True
     transient_local: bool = False
     keep_all: bool = False
+    lifespan_s: float = 0.0
+    """Samples older than this are dropped [s]; 0 = infinite."""
 
 
 #: rmw_qos_profile_default: RELIABLE, VOLATILE, KEEP_LAST 10 (also used for services).
@@ -29,6 +32,12 @@ QOS_SENSOR_DATA = QoSProfile(depth=5, reliable=False)
 #: Latched topic: RELIABLE, TRANSIENT_LOCAL, KEEP_LAST 1 (subscribers must use it too to get the last sample).
 QOS_LATCHED = QoSProfile(depth=1, transient_local=True)
 QOS_SERVICES = QOS_DEFAULT
+#: rmw_qos_profile_parameters (parameter services) and rmw_qos_profile_parameter_events: RELIABLE, VOLATILE,
+#: KEEP_LAST 1000.
+QOS_PARAMETERS = QoSProfile(depth=1000)
+QOS_PARAMETER_EVENTS = QoSProfile(depth=1000)
+#: rcl_qos_profile_rosout_default: RELIABLE, TRANSIENT_LOCAL, KEEP_LAST 1000, lifespan 10 s.
+QOS_ROSOUT = QoSProfile(depth=1000, transient_local=True, lifespan_s=10.0)
 
 
 def as_qos(qos: QoSProfile | int | None) -> QoSProfile:
@@ -46,6 +55,61 @@ class Parameter:
 
     name: str
     value: Any = None
+
+
+#: rcl_interfaces/msg/ParameterType values and the ParameterValue field holding each.
+NOT_SET, BOOL, INTEGER, DOUBLE, STRING = 0, 1, 2, 3, 4
+BYTE_ARRAY, BOOL_ARRAY, INTEGER_ARRAY, DOUBLE_ARRAY, STRING_ARRAY = 5, 6, 7, 8, 9
+VALUE_FIELDS = {BOOL: "bool_value", INTEGER: "integer_value", DOUBLE: "double_value", STRING: "string_value",
+                BYTE_ARRAY: "byte_array_value", BOOL_ARRAY: "bool_array_value",
+                INTEGER_ARRAY: "integer_array_value", DOUBLE_ARRAY: "double_array_value",
+                STRING_ARRAY: "string_array_value"}
+TYPE_NAMES = {NOT_SET: "not set", BOOL: "bool", INTEGER: "integer", DOUBLE: "double", STRING: "string",
+              BYTE_ARRAY: "byte_array", BOOL_ARRAY: "bool_array", INTEGER_ARRAY: "integer_array",
+              DOUBLE_ARRAY: "double_array", STRING_ARRAY: "string_array"}
+
+
+def parameter_type(value: Any) -> int:
+    """ParameterType of a Python value (like ``rclpy.Parameter.Type.from_parameter_value``)."""
+    if value is None:
+        return NOT_SET
+    for py, kind in ((bool, BOOL), (int, INTEGER), (float, DOUBLE), (str, STRING)):
+        if isinstance(value, py):
+            return kind
+    if isinstance(value, bytes | bytearray):
+        return BYTE_ARRAY
+    if isinstance(value, list | tuple):
+        for py, kind in ((bool, BOOL_ARRAY), (int, INTEGER_ARRAY), (float, DOUBLE_ARRAY), (str, STRING_ARRAY)):
+            if all(isinstance(v, py) and (py is bool or not isinstance(v, bool)) for v in value):
+                return kind
+    msg = f"unsupported parameter value {value!r}"
+    raise TypeError(msg)
+
+
+def value_to_msg(cls: type, value: Any) -> Any:
+    """rcl_interfaces/msg/ParameterValue (class ``cls``) holding ``value``."""
+    kind = parameter_type(value)
+    msg = cls(type=kind)
+    if kind != NOT_SET:
+        setattr(msg, VALUE_FIELDS[kind], bytes(value) if kind == BYTE_ARRAY else
+                list(value) if kind >= BOOL_ARRAY else value)
+    return msg
+
+
+def value_from_msg(msg: Any) -> Any:
+    """The Python value of an rcl_interfaces/msg/ParameterValue; ValueError for an unknown type."""
+    kind = int(msg.type)
+    if kind == NOT_SET:
+        return None
+    if kind not in VALUE_FIELDS:
+        msg_ = f"unknown parameter type {kind}"
+        raise ValueError(msg_)
+    value = getattr(msg, VALUE_FIELDS[kind])
+    return bytes(value) if kind == BYTE_ARRAY else list(value) if kind >= BOOL_ARRAY else value
+
+
+#: ``callback(parameters) -> (successful, reason)`` run before parameters are set (both backends).
+SetParametersCallback = Callable[[list[Parameter]], tuple[bool, str]]
 
 
 _NAME_RE = re.compile(r"^(/[A-Za-z_][A-Za-z0-9_]*)+$|^/$")
@@ -144,19 +208,52 @@ def make_logger(name: str, namespace: str) -> NodeLogger:
 
 
 class ParameterStore:
-    """Declared parameters with overrides (params file first, explicit overrides win)."""
+    """Declared parameters with overrides (params file first, explicit overrides win), their types and
+    descriptions, and rclpy's rules for setting them at run time (:meth:`set_atomically`)."""
 
     def __init__(self, overrides: Mapping[str, Any] | None) -> None:
         self._overrides = dict(overrides or {})
         self._params: dict[str, Parameter] = {}
+        self.types: dict[str, int] = {}
+        self.descriptions: dict[str, str] = {}
+        self.callbacks: list[SetParametersCallback] = []
+        self.lock = threading.RLock()
 
-    def declare(self, name: str, default: Any = None) -> Parameter:
-        if name in self._params:
-            msg = f"parameter {name!r} already declared"
-            raise ValueError(msg)
-        param = Parameter(name, self._overrides.get(name, default))
-        self._params[name] = param
-        return param
+    def declare(self, name: str, default: Any = None, description: str = "") -> Parameter:
+        with self.lock:
+            if name in self._params:
+                msg = f"parameter {name!r} already declared"
+                raise ValueError(msg)
+            param = Parameter(name, self._overrides.get(name, default))
+            self._params[name] = param
+            self.types[name] = parameter_type(default if default is not None else param.value)
+            self.descriptions[name] = description
+            return param
+
+    def names(self) -> list[str]:
+        with self.lock:
+            return list(self._params)
+
+    def set_atomically(self, params: list[Parameter]) -> tuple[bool, str]:
+        """Set all or none, like ``rclpy.Node.set_parameters_atomically``: declared, same type, accepted by
+        every on-set callback; returns (successful, reason)."""
+        with self.lock:
+            for p in params:
+                if p.name not in self._params:
+                    return False, f"parameter {p.name!r} is not declared"
+                declared, kind = self.types[p.name], parameter_type(p.value)
+                if declared != NOT_SET and kind != declared:
+                    return False, (f"Wrong parameter type, parameter {{{p.name}}} is of type "
+                                   f"{{{TYPE_NAMES[declared]}}}, setting it to {{{TYPE_NAMES[kind]}}} is not allowed.")
+            for callback in self.callbacks:
+                ok, reason = callback(list(params))
+                if not ok:
+                    return False, reason
+            for p in params:
+                self._params[p.name].value = p.value
+                if self.types[p.name] == NOT_SET:
+                    self.types[p.name] = parameter_type(p.value)
+            return True, ""
 
     def get(self, name: str) -> Parameter:
         if name not in self._params:
@@ -168,4 +265,42 @@ class ParameterStore:
         return name in self._params
 
     def set(self, name: str, value: Any) -> None:
-        self.get(name).value = value
+        """Set without callbacks or type checks (the node's own code, e.g. replacing an invalid override)."""
+        with self.lock:
+            self.get(name).value = value
+            self.types[name] = parameter_type(value)
+
+
+_LOG_LEVELS = (50, 40, 30, 20)  # rcl_interfaces/msg/Log FATAL, ERROR, WARN, INFO (else DEBUG = 10)
+
+
+class RosoutHandler(logging.Handler):
+    """Forwards Python log records to ``/rosout`` as rcl_interfaces/msg/Log (both backends).
+
+    ``publish`` is the node's /rosout publisher (thread-safe); records logged while publishing are dropped.
+    """
+
+    def __init__(self, name: str, log_cls: type, time_msg: Callable[[float], Any], publish: Callable[[Any], None]):
+        super().__init__(logging.INFO)
+        self.node_logger_name = name
+        self._cls, self._time_msg, self._publish = log_cls, time_msg, publish
+        self._local = threading.local()
+        self.closed = False
+
+    def emit(self, record: logging.LogRecord) -> None:
+        if self.closed or getattr(self._local, "busy", False):
+            return
+        self._local.busy = True
+        try:
+            level = next((lv for lv in _LOG_LEVELS if record.levelno >= lv), 10)
+            self._publish(self._cls(stamp=self._time_msg(record.created), level=level, name=self.node_logger_name,
+                                    msg=record.getMessage(), file=record.pathname, function=record.funcName,
+                                    line=record.lineno))
+        except Exception:  # never let logging break the node (e.g. a publisher already destroyed)
+            pass
+        finally:
+            self._local.busy = False
+
+    def close(self) -> None:
+        self.closed = True
+        super().close()

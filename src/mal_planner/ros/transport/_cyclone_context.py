@@ -26,7 +26,9 @@ DISCOVERY_TYPE = "rmw_dds_common/msg/ParticipantEntitiesInfo"
 
 def dds_qos(profile: QoSProfile, user_data: str) -> Qos:
     """DDS QoS for a ROS profile, XCDR1 data representation and the given USER_DATA."""
+    lifespan = [Policy.Lifespan(duration(seconds=profile.lifespan_s))] if profile.lifespan_s > 0 else []
     return Qos(
+        *lifespan,
         Policy.Reliability.Reliable(max_blocking_time=duration(milliseconds=100))
         if profile.reliable
         else Policy.Reliability.BestEffort,

@@ -8,6 +8,7 @@ from __future__ import annotations
 
 import contextlib
 import itertools
+import logging
 import threading
 import time
 from collections.abc import Callable
@@ -27,6 +28,7 @@ from ._common import (
     Parameter,
     ParameterStore,
     QoSProfile,
+    SetParametersCallback,
     as_qos,
     load_params_file,
     make_logger,
@@ -41,6 +43,7 @@ from ._cyclone_context import (
     delete_entity,
     parse_user_data,
 )
+from ._node_interfaces import NodeInterfaces
 
 _ANY = SampleState.Any | ViewState.Any | InstanceState.Any
 _TAKE_BATCH = 64
@@ -128,13 +131,14 @@ class Subscription:
 class _ServiceEndpoints:
     """Request/reply reader+writer pair of a service or a client, with the rmw_cyclonedds USER_DATA."""
 
-    def __init__(self, node: CycloneNode, srv: mal_msgs_py.ServiceType, name: str, is_service: bool) -> None:
+    def __init__(self, node: CycloneNode, srv: mal_msgs_py.ServiceType, name: str, is_service: bool,
+                 profile: QoSProfile = QOS_SERVICES) -> None:
         ctx = node.context
         self.srv = srv
         self.service_name = name
         self.csid = ctx.next_client_service_id()
         key = "serviceid" if is_service else "clientid"
-        qos = dds_qos(QOS_SERVICES, f"{key}={csid_to_string(self.csid)};typehash={srv.type_hash};")
+        qos = dds_qos(profile, f"{key}={csid_to_string(self.csid)};typehash={srv.type_hash};")
         req_topic = ctx.topic(f"rq{name}Request", srv.WireRequest)
         rep_topic = ctx.topic(f"rr{name}Reply", srv.WireResponse)
         if is_service:
@@ -158,9 +162,9 @@ class Service(_ServiceEndpoints):
 
     def __init__(
         self, node: CycloneNode, srv: mal_msgs_py.ServiceType, name: str, callback: Callable[..., Any],
-        reentrant: bool = False,
+        reentrant: bool = False, qos: QoSProfile = QOS_SERVICES,
     ):
-        super().__init__(node, srv, name, is_service=True)
+        super().__init__(node, srv, name, is_service=True, profile=qos)
         self.callback = callback
         self.reentrant = reentrant
 
@@ -314,6 +318,7 @@ class CycloneNode:
         *,
         parameter_overrides: dict[str, Any] | None = None,
         params_file: str | Path | None = None,
+        start_parameter_services: bool = True,
     ) -> None:
         self._name = name
         self._namespace = normalize_namespace(namespace)
@@ -337,6 +342,11 @@ class CycloneNode:
         self._destroyed = False
         self._finalized = False
         self.context.add_node(self._entities)
+        self._interfaces: NodeInterfaces | None = None
+        self._log_targets: list[logging.Logger] = []
+        if start_parameter_services:
+            self._interfaces = NodeInterfaces(self, self._params)
+            self.forward_logs(self._logger.logger)
 
     # -- names, logging, parameters, time ------------------------------------------------------------
     def get_name(self) -> str:
@@ -351,8 +361,22 @@ class CycloneNode:
     def resolve(self, name: str) -> str:
         return resolve_name(name, self._namespace, self._name)
 
-    def declare_parameter(self, name: str, default: Any = None) -> Parameter:
-        return self._params.declare(name, default)
+    def declare_parameter(self, name: str, default: Any = None, description: str = "") -> Parameter:
+        param = self._params.declare(name, default, description)
+        if self._interfaces is not None:
+            self._interfaces.parameter_event(new=[param])
+        return param
+
+    def add_on_set_parameters_callback(self, callback: SetParametersCallback) -> None:
+        """``callback(parameters) -> (successful, reason)`` runs before a parameter service sets parameters;
+        a refusal leaves every value as it was and returns the reason to the caller."""
+        self._params.callbacks.append(callback)
+
+    def forward_logs(self, logger: logging.Logger) -> None:
+        """Publish the records of the Python ``logger`` on /rosout as this node's (until shutdown)."""
+        if self._interfaces is not None and logger not in self._log_targets:
+            logger.addHandler(self._interfaces.rosout)
+            self._log_targets.append(logger)
 
     def get_parameter(self, name: str) -> Parameter:
         return self._params.get(name)
@@ -362,6 +386,8 @@ class CycloneNode:
 
     def set_parameter(self, name: str, value: Any) -> None:
         self._params.set(name, value)
+        if self._interfaces is not None:
+            self._interfaces.parameter_event(changed=[self._params.get(name)])
 
     def now(self) -> float:
         """Wall-clock time [s since the epoch]."""
@@ -404,11 +430,11 @@ class CycloneNode:
 
     def create_service(
         self, srv_type: str | mal_msgs_py.ServiceType, name: str, callback: Callable[[Any, Any], Any],
-        reentrant: bool = False,
+        reentrant: bool = False, qos: QoSProfile | None = None,
     ) -> Service:
         """A service server. ``reentrant`` callbacks run on a worker thread of their own and may block
         (e.g. wait for a result computed elsewhere) without holding up the node's other callbacks."""
-        srv = Service(self, self._srv(srv_type), self.resolve(name), callback, reentrant)
+        srv = Service(self, self._srv(srv_type), self.resolve(name), callback, reentrant, qos or QOS_SERVICES)
         self._add_executable(srv, readers=[srv.reader_gid], writers=[srv.writer_gid])
         return srv
 
@@ -545,6 +571,10 @@ class CycloneNode:
             self._destroyed = True
             for timer in self._timers:
                 timer.cancel()
+        if self._interfaces is not None:
+            self._interfaces.rosout.close()
+            for logger in self._log_targets:
+                logger.removeHandler(self._interfaces.rosout)
         self._wake()
         if self._executor_thread == threading.get_ident():
             return

@@ -1,26 +1,43 @@
 """rclpy backend: a thin adapter giving rclpy nodes the same API as the built-in Cyclone backend.
 
-Only imported when rclpy is importable (a sourced ROS 2 installation). Each node has its own executor;
-its callbacks run one at a time, like the built-in backend, except services created with
-``reentrant=True``, which may block.
+Only imported when rclpy is importable (a sourced ROS 2 installation). Each node has its own rclpy
+context (initialised from the environment when the node is created, so ROS_DOMAIN_ID/CYCLONEDDS_URI
+changes apply to the next node; shut down with the node) and its own executor; its callbacks run one at a
+time, like the built-in backend, except services created with ``reentrant=True``, which may block.
+``call_async`` returns a ``concurrent.futures.Future`` on both backends.
 """
 
 from __future__ import annotations
 
 import importlib
+import logging
 import threading
 import time
+from concurrent.futures import Future
 from pathlib import Path
 from typing import Any
 
 import rclpy
+from rcl_interfaces.msg import ParameterDescriptor, SetParametersResult
 from rclpy.callback_groups import ReentrantCallbackGroup
+from rclpy.duration import Duration
 from rclpy.executors import MultiThreadedExecutor
 from rclpy.parameter import Parameter as RclpyParameter
 from rclpy.qos import DurabilityPolicy, HistoryPolicy, ReliabilityPolicy
 from rclpy.qos import QoSProfile as RclpyQoSProfile
 
-from ._common import QOS_SERVICES, Parameter, QoSProfile, as_qos, make_logger, normalize_namespace
+from ._common import (
+    QOS_ROSOUT,
+    QOS_SERVICES,
+    Parameter,
+    QoSProfile,
+    RosoutHandler,
+    SetParametersCallback,
+    as_qos,
+    make_logger,
+    node_fqn,
+    normalize_namespace,
+)
 
 
 def to_rclpy_qos(qos: QoSProfile | int | None) -> RclpyQoSProfile:
@@ -31,11 +48,14 @@ def to_rclpy_qos(qos: QoSProfile | int | None) -> RclpyQoSProfile:
         depth=profile.depth,
         reliability=ReliabilityPolicy.RELIABLE if profile.reliable else ReliabilityPolicy.BEST_EFFORT,
         durability=DurabilityPolicy.TRANSIENT_LOCAL if profile.transient_local else DurabilityPolicy.VOLATILE,
+        **({"lifespan": Duration(nanoseconds=int(profile.lifespan_s * 1e9))} if profile.lifespan_s > 0 else {}),
     )
 
 
 class RclpyTypes:
     """Message/service classes by ROS type name, imported from the generated Python packages."""
+
+    bytes_for_byte = True  # a `byte` field takes bytes of length 1 (see ros/convert.py byte_field)
 
     def msg(self, name: str) -> type:
         pkg, _, cls = _split(name, "msg")
@@ -69,8 +89,26 @@ class RclpyClient:
     def wait_for_service(self, timeout_sec: float | None = None) -> bool:
         return bool(self.client.wait_for_service(timeout_sec=timeout_sec))
 
-    def call_async(self, request: Any) -> Any:
-        return self.client.call_async(request)
+    def call_async(self, request: Any) -> Future[Any]:
+        """Send a request; the ``concurrent.futures.Future`` completes when the node's executor takes the
+        reply (as on the built-in backend: ``result(timeout=...)`` works; cancelling drops the request)."""
+        future: Future[Any] = Future()
+        inner = self.client.call_async(request)
+
+        def done(f: Any) -> None:
+            if f.cancelled():
+                future.cancel()
+            elif future.set_running_or_notify_cancel():
+                exc = f.exception()
+                future.set_exception(exc) if exc is not None else future.set_result(f.result())
+
+        def cancelled(f: Future[Any]) -> None:
+            if f.cancelled():
+                self.client.remove_pending_request(inner)
+
+        inner.add_done_callback(done)
+        future.add_done_callback(cancelled)
+        return future
 
     def call(self, request: Any, timeout_sec: float | None = None) -> Any:
         if self._node._executor_thread == threading.get_ident():
@@ -106,22 +144,31 @@ class RclpyNode:
         *,
         parameter_overrides: dict[str, Any] | None = None,
         params_file: str | Path | None = None,
+        start_parameter_services: bool = True,
     ) -> None:
-        if not rclpy.ok():
-            rclpy.init()
+        self._context = rclpy.Context()
+        rclpy.init(context=self._context)  # reads ROS_DOMAIN_ID, CYCLONEDDS_URI now
         cli_args = ["--ros-args", "--params-file", str(params_file)] if params_file else None
         self.node = rclpy.create_node(
             name,
             namespace=normalize_namespace(namespace),
+            context=self._context,
             parameter_overrides=[RclpyParameter(k, value=v) for k, v in (parameter_overrides or {}).items()],
             cli_args=cli_args,
+            start_parameter_services=start_parameter_services,
         )
         self.types = RclpyTypes()
         self._logger = make_logger(name, namespace)
         # Callbacks of the node's default (mutually exclusive) group still run one at a time; only the
         # services created with reentrant=True run beside them on the executor's second thread.
-        self._executor = MultiThreadedExecutor(num_threads=2)
+        self._executor = MultiThreadedExecutor(num_threads=2, context=self._context)
         self._executor.add_node(self.node)
+        rosout = self.node.create_publisher(self.types.msg("rcl_interfaces/msg/Log"), "/rosout",
+                                            to_rclpy_qos(QOS_ROSOUT))
+        self._rosout = RosoutHandler(node_fqn(name, namespace).strip("/").replace("/", "."),
+                                     self.types.msg("rcl_interfaces/msg/Log"), self.time_msg, rosout.publish)
+        self._log_targets: list[logging.Logger] = []
+        self.forward_logs(self._logger.logger)
         self._reentrant_group = ReentrantCallbackGroup()
         self._spin_lock = threading.Lock()
         self._executor_thread: int | None = None
@@ -139,9 +186,24 @@ class RclpyNode:
     def resolve(self, name: str) -> str:
         return str(self.node.resolve_topic_name(name))
 
-    def declare_parameter(self, name: str, default: Any = None) -> Parameter:
-        param = self.node.declare_parameter(name, default)
+    def declare_parameter(self, name: str, default: Any = None, description: str = "") -> Parameter:
+        param = self.node.declare_parameter(name, default, ParameterDescriptor(description=description))
         return Parameter(name, param.value)
+
+    def add_on_set_parameters_callback(self, callback: SetParametersCallback) -> None:
+        """``callback(parameters) -> (successful, reason)`` before parameters are set (rclpy's on-set hook)."""
+
+        def hook(params: list[RclpyParameter]) -> SetParametersResult:
+            ok, reason = callback([Parameter(p.name, p.value) for p in params])
+            return SetParametersResult(successful=ok, reason=reason)
+
+        self.node.add_on_set_parameters_callback(hook)
+
+    def forward_logs(self, logger: logging.Logger) -> None:
+        """Publish the records of the Python ``logger`` on /rosout as this node's (until shutdown)."""
+        if logger not in self._log_targets:
+            logger.addHandler(self._rosout)
+            self._log_targets.append(logger)
 
     def get_parameter(self, name: str) -> Parameter:
         return Parameter(name, self.node.get_parameter(name).value)
@@ -170,10 +232,11 @@ class RclpyNode:
     def create_subscription(self, msg_type: str | type, topic: str, callback: Any, qos: Any = None) -> Any:
         return self.node.create_subscription(self._cls(msg_type, "msg"), topic, callback, to_rclpy_qos(qos))
 
-    def create_service(self, srv_type: str | type, name: str, callback: Any, reentrant: bool = False) -> Any:
+    def create_service(self, srv_type: str | type, name: str, callback: Any, reentrant: bool = False,
+                       qos: QoSProfile | None = None) -> Any:
         srv = self._cls(srv_type, "srv")
         group = self._reentrant_group if reentrant else None
-        return self.node.create_service(srv, name, callback, qos_profile=to_rclpy_qos(QOS_SERVICES),
+        return self.node.create_service(srv, name, callback, qos_profile=to_rclpy_qos(qos or QOS_SERVICES),
                                         callback_group=group)
 
     def create_client(self, srv_type: str | type, name: str) -> RclpyClient:
@@ -194,8 +257,13 @@ class RclpyNode:
         if not self._spin_lock.acquire(blocking=False):
             return False
         try:
+            if self._destroyed:
+                self._finalize()
+                return True
             self._executor_thread = threading.get_ident()
             self._executor.spin_once(timeout_sec=timeout_sec)
+            if self._destroyed:
+                self._finalize()
         finally:
             self._executor_thread = None
             self._spin_lock.release()
@@ -209,7 +277,7 @@ class RclpyNode:
             raise RuntimeError(msg)
 
     def spin(self) -> None:
-        while not self._destroyed and rclpy.ok():
+        while not self._destroyed and self._context.ok():
             self.spin_once(0.5)
 
     def spin_until_future_complete(self, future: Any, timeout_sec: float | None = None) -> None:
@@ -221,11 +289,24 @@ class RclpyNode:
             self.spin_once(left)
 
     def shutdown(self) -> None:
+        """Destroy the node and shut its context down (safe from a callback: then at the end of the step)."""
         if self._destroyed:
             return
         self._destroyed = True
-        self._executor.remove_node(self.node)
-        self.node.destroy_node()
+        self._rosout.close()
+        for logger in self._log_targets:
+            logger.removeHandler(self._rosout)
+        if self._executor_thread == threading.get_ident():
+            return  # _spin_some finishes the clean-up when the current callback returns
+        with self._spin_lock:
+            self._finalize()
+
+    def _finalize(self) -> None:
+        if self._context.ok():
+            self._executor.remove_node(self.node)
+            self.node.destroy_node()
+            self._executor.shutdown(timeout_sec=1.0)
+            self._context.try_shutdown()
 
     destroy_node = shutdown
     destroy = shutdown

@@ -1,0 +1,217 @@
+"""Dependable planning: impossible requests refused up front, strict verification, replans never stuck."""
+
+from __future__ import annotations
+
+import math
+import subprocess
+import sys
+from dataclasses import replace
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from mal_planner.errors import InfeasibleRequest
+from mal_planner.initializer.schedule import check_request, make_schedule
+from mal_planner.initializer.timing import earliest_landing_times, reachable_lower_bound
+from mal_planner.landing import LandingOptions
+from mal_planner.pipeline import Planner, PlanOptions
+from mal_planner.scenario import load_scenario, parse_scenario
+from mal_planner.trajectory import Trajectory
+from mal_planner.verification import verify
+
+COARSE = LandingOptions(mesh_tol=1e-4)
+V = 0.04
+
+
+@pytest.fixture(scope="module")
+def thesis():
+    return load_scenario("scenarios/thesis.yaml")
+
+
+def edited(scenario, **aircraft_fields):
+    """A copy of ``scenario`` with aircraft fields replaced: ``A1={"position": [...]}``."""
+    data = scenario.config.model_dump(mode="json", exclude_none=True)
+    for a in data["aircraft"]:
+        a.update(aircraft_fields.get(a["callsign"], {}))
+        if a.get("landing_time", 0) is None:
+            a.pop("landing_time")
+    return parse_scenario(data)
+
+
+def test_separation_broken_at_the_start_is_refused(thesis) -> None:
+    sc = edited(thesis, A2={"position": [1.3, 5.8, 0.28]})
+    with pytest.raises(InfeasibleRequest, match=r"A1 and A2 are 0\.100 nm apart at the start"):
+        check_request(sc)
+
+
+def test_unreachable_landing_time_is_refused(thesis) -> None:
+    sc = edited(thesis, A1={"landing_time": 100.0})
+    bound = reachable_lower_bound(sc, sc.aircraft_by_callsign("A1"))
+    assert 100.0 < bound < 155.0
+    with pytest.raises(InfeasibleRequest, match=r"A1: landing time 100 s is earlier than it can reach the runway"):
+        check_request(sc)
+
+
+def test_landing_times_closer_than_the_spacing_are_refused(thesis) -> None:
+    sc = edited(thesis, A2={"landing_time": 160.0})
+    with pytest.raises(InfeasibleRequest, match=r"A1 and A2 land 5 s apart"):
+        check_request(sc)
+
+
+def test_gate_too_small_to_pass_is_refused(thesis) -> None:
+    data = thesis.config.model_dump(mode="json", exclude_none=True)
+    data["gates"][0]["bounds"] = {"x": [-1.0, 1.0], "z": [0.1, 0.105]}
+    with pytest.raises(InfeasibleRequest, match="leaves no room to pass"):
+        check_request(parse_scenario(data), gate_margin_nm=0.012)
+
+
+def test_earliest_landing_is_turn_aware_and_above_the_bound(thesis) -> None:
+    earliest = earliest_landing_times(thesis)
+    for ac in thesis.aircraft:
+        assert reachable_lower_bound(thesis, ac) <= earliest[ac.callsign] <= ac.landing_time
+    # Pointing away from the runway costs a turn: the estimate grows, the straight-line bound does not.
+    away = edited(thesis, A1={"heading_deg": 90.0})
+    assert earliest_landing_times(away)["A1"] > earliest["A1"] + 10.0  # a 105 deg turn
+    assert reachable_lower_bound(away, away.aircraft_by_callsign("A1")) == pytest.approx(
+        reachable_lower_bound(thesis, thesis.aircraft_by_callsign("A1")))
+
+
+def test_partly_fixed_times_keep_the_fixed_and_space_the_rest(thesis) -> None:
+    sc = edited(thesis, A2={"landing_time": None}, A3={"landing_time": None})
+    schedule = make_schedule(sc, earliest_landing_times(sc))
+    times = schedule.time_list()
+    assert schedule.times["A1"] == 155.0
+    assert all(b - a >= sc.landing_spacing_s - 1e-9 for a, b in zip(times, times[1:], strict=False))
+
+
+def level(callsign: str, start, heading: float, duration: float, n_h: float = 0.0, n_v: float = 1.0,
+          dt: float = 0.25) -> Trajectory:
+    t = np.arange(0.0, duration + 1e-9, dt)
+    states = np.zeros((len(t), 5))
+    states[:, 0] = start[0] + V * t * math.cos(heading)
+    states[:, 1] = start[1] + V * t * math.sin(heading)
+    states[:, 2] = start[2]
+    states[:, 4] = heading
+    return Trajectory(callsign, t, states, np.tile([n_h, n_v], (len(t), 1)))
+
+
+def test_verification_accepts_nothing_below_the_separation(thesis) -> None:
+    """Two parallel aircraft 0.2498 nm apart (five_aircraft passed with that before): refused."""
+    for gap, ok in ((0.2498, False), (0.2502, True)):
+        a, b = np.array([-1.0, 5.0, 0.2]), np.array([-1.0 + gap, 5.0, 0.2])
+        sc = thesis.with_initial_states({"A1": np.array([*a, 0.0, -math.pi / 2]),
+                                         "A2": np.array([*b, 0.0, -math.pi / 2])})
+        report = verify(sc, [level("A1", a, -math.pi / 2, 10.0), level("A2", b, -math.pi / 2, 10.0)])
+        broken = [r for r in report.reasons if "nm apart" in r]
+        assert bool(broken) != ok, (gap, report.reasons)
+
+
+def test_verification_checks_the_published_bank_angle_exactly(thesis) -> None:
+    """A bank of 45.05 deg (inside the old 0.1 deg tolerance) is refused; the controls are not clipped."""
+    start = np.array([0.0, 5.0, 0.2])
+    sc = thesis.with_initial_states({"A1": np.array([*start, 0.0, -math.pi / 2])})
+    n_h = math.tan(math.radians(45.05))
+    tr = level("A1", start, -math.pi / 2, 2.0, n_h=n_h)
+    report = verify(sc, [tr])
+    assert any("bank angle reaches 45.050 deg" in r for r in report.reasons), report.reasons
+    assert report.aircraft[0].limit_violation_times_s
+
+
+def test_planned_controls_keep_the_limits_without_clipping(thesis) -> None:
+    result = Planner(PlanOptions(seed=0, landing=COARSE)).plan(thesis, reuse=False)
+    assert result.verified, result.verification.reasons
+    for tr in result.trajectories():
+        lim = thesis.aircraft_by_callsign(tr.callsign).limits
+        assert np.all(np.abs(tr.controls[:, 0]) <= math.tan(lim.bank_angle_max) * tr.controls[:, 1])
+        assert np.all(tr.controls[:, 1] >= lim.n_v[0]) and np.all(tr.controls[:, 1] <= lim.n_v[1])
+    assert result.verification.aircraft[0].max_position_deviation_nm < 2e-3
+
+
+def test_a_failed_plan_never_leaves_the_planner_stuck(thesis) -> None:
+    """A plan that fails with another aircraft set must not make the next warm start raise KeyError."""
+    planner = Planner(PlanOptions(seed=0, landing=COARSE))
+    assert planner.plan(thesis, start_time=0.0).verified
+    two = replace(thesis, aircraft=thesis.aircraft[:2])
+    planner.options = replace(planner.options, time_limit_s=0.05)
+    failed = planner.plan(two, start_time=2.0)
+    assert failed.failure is not None and failed.failure[0] == "timeout"
+    planner.options = replace(planner.options, time_limit_s=None)
+    again = planner.plan(two, start_time=2.0)
+    assert again.verified, again.verification.reasons
+
+
+def test_replan_just_before_a_landing_drops_the_landed_aircraft(thesis) -> None:
+    planner = Planner(PlanOptions(seed=0, landing=COARSE))
+    first = planner.plan(thesis, start_time=0.0)
+    assert first.verified
+    t = first.landing_times()["A1"] - 1.0
+    states = {tr.callsign: tr.state_at(t) for tr in first.trajectories()}
+    second = planner.plan(thesis.with_initial_states(states), start_time=t)
+    assert "A1" not in second.order and second.verified, second.failure
+
+
+def test_fixed_times_out_of_nearest_first_order_plan_verified(thesis) -> None:
+    sc = edited(thesis, A1={"landing_time": 185.0}, A2={"landing_time": 170.0}, A3={"landing_time": 200.0})
+    result = Planner(PlanOptions(seed=0, landing=COARSE)).plan(sc, reuse=False)
+    assert result.order == ["A2", "A1", "A3"]
+    assert result.verified, result.failure
+    for cs, t in {"A1": 185.0, "A2": 170.0, "A3": 200.0}.items():
+        assert result.landing_times()[cs] == pytest.approx(t, abs=1e-6)
+
+
+def run_cli(*args: str) -> subprocess.CompletedProcess:
+    return subprocess.run([sys.executable, "-m", "mal_planner.cli", *args], capture_output=True, text=True,
+                          timeout=120)
+
+
+@pytest.mark.parametrize(("args", "message"), [
+    (["--seed", "-2"], "--seed: must be >= 0, or -1"),
+    (["--mesh-tol", "0"], "--mesh-tol: must be a finite number > 0"),
+    (["--mesh-tol", "nan"], "--mesh-tol: must be a finite number > 0"),
+    (["--time-limit", "-1"], "--time-limit: must be a finite number > 0"),
+    (["--out", "/proc/no/such"], "cannot create the folder"),
+])
+def test_cli_bad_options_exit_2_with_one_line(args, message) -> None:
+    proc = run_cli("scenarios/thesis.yaml", *args)
+    assert proc.returncode == 2 and message in proc.stderr
+    assert len(proc.stderr.strip().splitlines()) == 1, proc.stderr
+
+
+def test_cli_binary_scenario_and_impossible_request_exit_2(tmp_path: Path, thesis) -> None:
+    binary = tmp_path / "x.yaml"
+    binary.write_bytes(bytes(range(256)))
+    proc = run_cli(str(binary))
+    assert proc.returncode == 2 and "not a text" in proc.stderr and "Traceback" not in proc.stderr
+    text = Path("scenarios/thesis.yaml").read_text()
+    text = text.replace("position: [-1.8, 6.0, 0.25]", "position: [1.3, 5.8, 0.28]")
+    close = tmp_path / "close.yaml"
+    close.write_text(text)
+    proc = run_cli(str(close), "--out", str(tmp_path / "o"))
+    assert proc.returncode == 2 and "impossible request: A1 and A2 are 0.100 nm apart" in proc.stderr, proc.stderr
+
+
+def test_cli_random_seed_is_reported(tmp_path: Path) -> None:
+    proc = run_cli("scenarios/thesis.yaml", "--seed", "-1", "--initial-only", "--figures", "none", "--out",
+                   str(tmp_path), "-q")
+    assert proc.returncode == 0 and "random seed" in proc.stderr
+    assert "exit codes" in run_cli("--help").stdout
+
+
+def test_unknown_initializer_is_refused_when_the_planner_is_made() -> None:
+    from mal_planner.errors import InvalidInput
+
+    with pytest.raises(InvalidInput, match="unknown planner 'ompl:Nope'"):
+        Planner(PlanOptions(initializer="ompl:Nope"))
+
+
+@pytest.mark.parametrize("planner", ["ompl:PRM", "ompl:PRMstar"])
+def test_threaded_ompl_planners_do_not_deadlock(planner: str) -> None:
+    """PRM grows its roadmap in a thread; a Python stop callback deadlocked it (and the node ignored SIGINT)."""
+    code = ("import numpy as np; from mal_planner.scenario import load_scenario; "
+            "from mal_planner.initializer import make_planner, CollisionChecker; "
+            "sc = load_scenario('scenarios/no_fly_zones.yaml'); ch = CollisionChecker.from_scenario(sc); "
+            f"p = make_planner('{planner}').plan(ch, sc.aircraft[0].position, sc.runway_state[:3], "
+            "np.random.default_rng(0)); print(len(p))")
+    proc = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=60)
+    assert proc.returncode == 0 and int(proc.stdout.strip()) >= 2, proc.stderr
