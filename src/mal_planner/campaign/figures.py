@@ -1,0 +1,109 @@
+"""The campaign's PNG figures (matplotlib, Agg backend): all plotting of campaigns lives here."""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+from pathlib import Path
+
+import numpy as np
+
+from mal_planner.campaign.results import as_float
+from mal_planner.campaign.summary import STAGES, failure_counts, fit_growth, stage_medians, success_by_n
+
+
+def _pyplot():
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    return plt
+
+
+def _save(fig, path: Path) -> Path:
+    fig.tight_layout()
+    fig.savefig(path, dpi=110)
+    _pyplot().close(fig)
+    return path
+
+
+def figure_success(rows: Sequence[dict[str, str]], path: Path) -> Path:
+    plt = _pyplot()
+    by_n = success_by_n(rows)
+    fig, ax = plt.subplots(figsize=(6, 3.5))
+    ns = list(by_n)
+    rates = [100.0 * ok / total for ok, total in by_n.values()]
+    bars = ax.bar([str(n) for n in ns], rates, color="tab:green")
+    for bar, (ok, total) in zip(bars, by_n.values(), strict=True):
+        ax.annotate(f"{ok}/{total}", (bar.get_x() + bar.get_width() / 2, bar.get_height()), ha="center",
+                    va="bottom", fontsize=8)
+    ax.set(xlabel="aircraft N", ylabel="verified plans (%)", ylim=(0, 110), title="Success rate per N")
+    return _save(fig, path)
+
+
+def figure_stage_times(rows: Sequence[dict[str, str]], path: Path) -> Path:
+    plt = _pyplot()
+    fig, ax = plt.subplots(figsize=(6, 4))
+    for stage, marker in zip(STAGES, "osv*", strict=True):
+        medians = stage_medians(rows, stage)
+        if not medians:
+            continue
+        ns, ts = np.array(list(medians)), np.array(list(medians.values()))
+        keep = ts > 0
+        growth = fit_growth(list(ns), list(ts))
+        label = stage.removesuffix("_s") + (f" (~N^{growth.exponent:.2f})" if growth else "")
+        line, = ax.loglog(ns[keep], ts[keep], marker=marker, label=label)
+        if growth:
+            grid = np.linspace(ns.min(), ns.max(), 50)
+            ax.loglog(grid, growth.coefficient * grid ** growth.exponent, "--", color=line.get_color(), lw=0.8)
+    from matplotlib.ticker import FormatStrFormatter, NullFormatter
+
+    ns_all = sorted({n for stage in STAGES for n in stage_medians(rows, stage)})
+    if ns_all:
+        ax.set_xticks(ns_all)
+    ax.xaxis.set_major_formatter(FormatStrFormatter("%d"))
+    ax.xaxis.set_minor_formatter(NullFormatter())
+    ax.yaxis.set_major_formatter(FormatStrFormatter("%g"))
+    ax.set(xlabel="aircraft N", ylabel="median time (s)", title="Time per stage (dashed: fitted c N^k)")
+    ax.grid(True, which="both", alpha=0.3)
+    ax.legend(fontsize=8)
+    return _save(fig, path)
+
+
+def figure_solve_times(rows: Sequence[dict[str, str]], path: Path) -> Path:
+    plt = _pyplot()
+    fig, (ax1, ax2) = plt.subplots(1, 2, figsize=(9, 3.5))
+    groups = {"verified": [r for r in rows if r["status"] == "ok"], "failed": [r for r in rows if r["status"] != "ok"]}
+    every = [t for r in rows if (t := as_float(r["process_s"])) is not None]
+    bins = np.histogram_bin_edges(every, bins=20) if every else 20
+    for label, sel in groups.items():
+        times = np.sort([t for r in sel if (t := as_float(r["process_s"])) is not None])
+        if times.size == 0:
+            continue
+        ax1.hist(times, bins=bins, alpha=0.6, label=f"{label} ({times.size})")
+        ax2.step(np.concatenate([[times[0]], times]), np.arange(times.size + 1) / times.size, where="post",
+                 label=label)
+    ax1.set(xlabel="wall time per scenario (s)", ylabel="scenarios", title="Histogram")
+    ax2.set(xlabel="wall time per scenario (s)", ylabel="fraction", title="ECDF", xscale="log")
+    for ax in (ax1, ax2):
+        ax.legend(fontsize=8)
+        ax.grid(True, alpha=0.3)
+    return _save(fig, path)
+
+
+def figure_failures(rows: Sequence[dict[str, str]], path: Path) -> Path:
+    plt = _pyplot()
+    counts = failure_counts(rows)
+    fig, ax = plt.subplots(figsize=(6, 3.5))
+    ax.barh(list(counts), list(counts.values()), color="tab:red")
+    ax.invert_yaxis()
+    ax.set(xlabel="scenarios", title="Failure classes")
+    return _save(fig, path)
+
+
+def write_figures(rows: Sequence[dict[str, str]], out_dir: Path) -> list[Path]:
+    out_dir = Path(out_dir)
+    return [figure_success(rows, out_dir / "success_rate.png"),
+            figure_stage_times(rows, out_dir / "stage_times.png"),
+            figure_solve_times(rows, out_dir / "solve_times.png"),
+            figure_failures(rows, out_dir / "failure_classes.png")]

@@ -1,0 +1,111 @@
+"""The campaign table ``results.csv``: one row per scenario, appended and flushed as each result arrives."""
+
+from __future__ import annotations
+
+import csv
+import io
+from collections.abc import Iterable
+from pathlib import Path
+
+COLUMNS: tuple[str, ...] = (
+    "file",                        # absolute path of the scenario file (the key --resume uses)
+    "name",                        # the scenario's name
+    "n_aircraft",
+    "layout",                      # wall | no-fly-zones | open (from the obstacles and gates of the file)
+    "landing_times",               # fixed | free | partial: landing times given in the file
+    "status",                      # ok (optimal and verified) | failed
+    "verified",                    # true | false
+    "failure_class",               # empty when ok, else one of mal_planner.errors.FAILURE_CLASSES
+    "reason",                      # one line
+    "optimizer_status",            # IPOPT's return status of the last solve
+    "initializer_s", "optimizer_s", "verification_s",
+    "total_s",                     # planning time (initializer + optimizer + verification)
+    "process_s",                   # wall time of the child process (Python start and imports included)
+    "ipopt_iterations", "mesh_iterations",
+    "min_separation_nm",           # smallest distance of any pair in the verification's re-integrated flight
+    "min_obstacle_clearance_nm",   # smallest ray distance of the planned trajectories to any obstacle
+    "landing_times_s",             # planned landing time per aircraft, "CS=t;CS=t" in landing order
+    "initializer_landing_times_s", # the initializer's (sequencer's) landing times, same format
+    "mean_delay_s", "max_delay_s", # planned minus initializer landing times
+    "peak_memory_mb",              # peak resident memory of the planning process
+    "seed",
+    "worker",                      # host:pid of the engine worker that ran it
+)
+
+
+def format_row(row: dict) -> dict[str, str]:
+    """Every column as text: floats to 4 significant decimals, None as empty, bools lower case."""
+    out: dict[str, str] = {}
+    for key in COLUMNS:
+        value = row.get(key)
+        if value is None:
+            out[key] = ""
+        elif isinstance(value, bool):
+            out[key] = str(value).lower()
+        elif isinstance(value, float):
+            out[key] = f"{value:.6g}"
+        else:
+            out[key] = str(value)
+    return out
+
+
+class ResultsTable:
+    """Appends rows to ``path`` (header first when new) and flushes each one to disk."""
+
+    def __init__(self, path: Path) -> None:
+        self.path = Path(path)
+        new = not self.path.exists() or self.path.stat().st_size == 0
+        if not new:
+            _drop_partial_line(self.path)
+        self._file = self.path.open("a", encoding="utf-8", newline="")
+        self._writer = csv.DictWriter(self._file, fieldnames=COLUMNS)
+        if new:
+            self._writer.writeheader()
+            self._file.flush()
+
+    def append(self, row: dict) -> None:
+        self._writer.writerow(format_row(row))
+        self._file.flush()
+
+    def close(self) -> None:
+        self._file.close()
+
+    def __enter__(self) -> ResultsTable:
+        return self
+
+    def __exit__(self, *exc: object) -> None:
+        self.close()
+
+
+def _drop_partial_line(path: Path) -> None:
+    """Cut a last line without its newline (a write interrupted half way), so the next row starts clean."""
+    data = path.read_bytes()
+    if data and not data.endswith(b"\n"):
+        path.write_bytes(data[: data.rfind(b"\n") + 1])
+
+
+class ResultsFormatError(ValueError):
+    """results.csv that this version cannot read (wrong header)."""
+
+
+def read_rows(path: Path) -> list[dict[str, str]]:
+    """All complete rows of ``path`` (a row cut short by an interruption is dropped)."""
+    text = Path(path).read_text(encoding="utf-8")
+    reader = csv.DictReader(io.StringIO(text))
+    if reader.fieldnames is None:
+        return []
+    missing = [c for c in COLUMNS if c not in reader.fieldnames]
+    if missing:
+        raise ResultsFormatError(f"{path}: not a campaign table (missing columns: {', '.join(missing)})")
+    return [r for r in reader if r.get("worker") is not None and r.get("file")]
+
+
+def done_files(rows: Iterable[dict[str, str]]) -> set[str]:
+    return {r["file"] for r in rows}
+
+
+def as_float(value: str) -> float | None:
+    try:
+        return float(value) if value not in ("", None) else None
+    except ValueError:
+        return None

@@ -1,0 +1,155 @@
+"""``summary.md`` of a campaign: success per N, time per stage against N with growth exponents, solve-time
+distribution, failure classes. Computed from the rows of results.csv only."""
+
+from __future__ import annotations
+
+import math
+import re
+from collections import Counter
+from collections.abc import Sequence
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+
+from mal_planner.campaign.results import as_float
+from mal_planner.errors import FAILURE_CLASSES
+
+STAGES = ("initializer_s", "optimizer_s", "verification_s", "total_s")
+
+
+@dataclass(frozen=True)
+class Growth:
+    """median time ~ c N^exponent, least squares on log median against log N."""
+
+    exponent: float
+    coefficient: float
+
+
+def fit_growth(ns: Sequence[int], medians: Sequence[float]) -> Growth | None:
+    pairs = [(n, m) for n, m in zip(ns, medians, strict=True) if n > 0 and m is not None and m > 0]
+    if len({n for n, _ in pairs}) < 2:
+        return None
+    slope, intercept = np.polyfit(np.log([n for n, _ in pairs]), np.log([m for _, m in pairs]), 1)
+    return Growth(float(slope), float(math.exp(intercept)))
+
+
+def n_of(row: dict[str, str]) -> int | None:
+    value = as_float(row.get("n_aircraft", ""))
+    return int(value) if value is not None else None
+
+
+def success_by_n(rows: Sequence[dict[str, str]]) -> dict[int, tuple[int, int]]:
+    """N -> (verified, scenarios); rows whose N is unknown (unreadable files) are left out."""
+    out: dict[int, list[int]] = {}
+    for row in rows:
+        n = n_of(row)
+        if n is not None:
+            counts = out.setdefault(n, [0, 0])
+            counts[0] += row["status"] == "ok"
+            counts[1] += 1
+    return {n: (ok, total) for n, (ok, total) in sorted(out.items())}
+
+
+def stage_medians(rows: Sequence[dict[str, str]], stage: str) -> dict[int, float]:
+    """N -> median seconds of ``stage`` over the rows where it ran."""
+    values: dict[int, list[float]] = {}
+    for row in rows:
+        n, t = n_of(row), as_float(row.get(stage, ""))
+        if n is not None and t is not None:
+            values.setdefault(n, []).append(t)
+    return {n: float(np.median(v)) for n, v in sorted(values.items())}
+
+
+def failure_counts(rows: Sequence[dict[str, str]]) -> dict[str, int]:
+    counts = Counter(row["failure_class"] for row in rows if row["failure_class"])
+    return {cls: counts.get(cls, 0) for cls in FAILURE_CLASSES}
+
+
+def typical_reasons(rows: Sequence[dict[str, str]], failure_class: str, k: int = 2) -> list[tuple[str, int]]:
+    """The most common reasons of a class (numbers stripped so that similar reasons count together)."""
+    def shape(reason: str) -> str:
+        return re.sub(r"\d+(\.\d+)?", "#", reason)[:120]
+
+    counter = Counter(shape(r["reason"]) for r in rows if r["failure_class"] == failure_class)
+    return counter.most_common(k)
+
+
+def quantiles(values: Sequence[float]) -> str:
+    if not values:
+        return "| - | - | - | - | - | - |"
+    q = np.quantile(values, [0.0, 0.25, 0.5, 0.75, 0.9, 1.0])
+    return "| " + " | ".join(f"{v:.1f}" for v in q) + " |"
+
+
+def _fmt(value: float | None, digits: int = 2) -> str:
+    return "-" if value is None else f"{value:.{digits}f}"
+
+
+def summary_markdown(rows: Sequence[dict[str, str]], figures: Sequence[Path] = ()) -> str:
+    ok = sum(r["status"] == "ok" for r in rows)
+    lines = ["# Campaign summary", "",
+             f"{len(rows)} scenarios, {ok} verified ({100.0 * ok / max(len(rows), 1):.1f} %).", "",
+             "## Success rate per number of aircraft", "",
+             "| N | scenarios | verified | success rate | failures (class: count) |", "|---|---|---|---|---|"]
+    for n, (n_ok, total) in success_by_n(rows).items():
+        classes = Counter(r["failure_class"] for r in rows if n_of(r) == n and r["failure_class"])
+        detail = ", ".join(f"{c}: {k}" for c, k in sorted(classes.items())) or "-"
+        lines.append(f"| {n} | {total} | {n_ok} | {100.0 * n_ok / total:.0f} % | {detail} |")
+    layouts = sorted({r["layout"] for r in rows if r["layout"]})
+    if len(layouts) > 1:
+        lines += ["", "| layout | scenarios | verified | success rate |", "|---|---|---|---|"]
+        for layout in layouts:
+            sel = [r for r in rows if r["layout"] == layout]
+            n_ok = sum(r["status"] == "ok" for r in sel)
+            lines.append(f"| {layout} | {len(sel)} | {n_ok} | {100.0 * n_ok / len(sel):.0f} % |")
+    lines += ["", "## Failure classes", "", "| class | count | typical reasons |", "|---|---|---|"]
+    for cls, count in failure_counts(rows).items():
+        reasons = "; ".join(f"{reason} ({k}x)" for reason, k in typical_reasons(rows, cls)) if count else ""
+        lines.append(f"| {cls} | {count} | {reasons.replace('|', '/')} |")
+    lines += ["", "## Time per stage against N (median seconds over the runs where the stage ran)", "",
+              "| N | initializer | optimizer | verification | total | runs |", "|---|---|---|---|---|---|"]
+    medians = {stage: stage_medians(rows, stage) for stage in STAGES}
+    for n in sorted(success_by_n(rows)):
+        runs = sum(1 for r in rows if n_of(r) == n and as_float(r["total_s"]) is not None)
+        lines.append(f"| {n} | " + " | ".join(_fmt(medians[s].get(n)) for s in STAGES) + f" | {runs} |")
+    lines += ["", "Fitted growth (least squares on log median against log N): median time ~ c N^k", "",
+              "| stage | k | c (s) |", "|---|---|---|"]
+    for stage in STAGES:
+        growth = fit_growth(list(medians[stage]), list(medians[stage].values()))
+        lines.append(f"| {stage.removesuffix('_s')} | {_fmt(growth and growth.exponent)} | "
+                     f"{_fmt(growth and growth.coefficient, 3)} |")
+    verified_times = [t for r in rows if r["status"] == "ok" and (t := as_float(r["total_s"])) is not None]
+    all_times = [t for r in rows if (t := as_float(r["total_s"])) is not None]
+    process = [t for r in rows if (t := as_float(r["process_s"])) is not None]
+    lines += ["", "## Distribution of solve times (seconds)", "",
+              "| runs | min | 25 % | median | 75 % | 90 % | max |", "|---|---|---|---|---|---|---|",
+              f"| verified plans, planning time ({len(verified_times)}) " + quantiles(verified_times),
+              f"| every finished run, planning time ({len(all_times)}) " + quantiles(all_times),
+              f"| every run, process wall time incl. start-up and kills ({len(process)}) " + quantiles(process)]
+    delays = [d for r in rows if r["status"] == "ok" and (d := as_float(r["mean_delay_s"])) is not None]
+    memory = [m for r in rows if (m := as_float(r["peak_memory_mb"])) is not None]
+    seps = [s for r in rows if r["status"] == "ok" and (s := as_float(r["min_separation_nm"])) is not None]
+    lines += ["", "## Plans", "",
+              "* mean landing delay against the initializer's times, verified plans: "
+              f"median {_fmt(_median(delays), 1)} s ({len(delays)} plans)",
+              f"* smallest separation in a verified plan: {_fmt(min(seps) if seps else None, 3)} nm",
+              f"* peak memory of a planning process: median {_fmt(_median(memory), 0)} MB, "
+              f"max {_fmt(max(memory) if memory else None, 0)} MB"]
+    if figures:
+        lines += ["", "## Figures", ""] + [f"![{f.stem}]({f.name})" for f in figures]
+    return "\n".join(lines) + "\n"
+
+
+def _median(values: Sequence[float]) -> float | None:
+    return float(np.median(values)) if values else None
+
+
+def write_summary(rows: Sequence[dict[str, str]], out_dir: Path) -> Path:
+    """Write the figures and ``summary.md`` into ``out_dir``; return the summary's path."""
+    from mal_planner.campaign.figures import write_figures
+
+    figures = write_figures(rows, out_dir) if rows else []
+    path = Path(out_dir) / "summary.md"
+    path.write_text(summary_markdown(rows, figures), encoding="utf-8")
+    return path
