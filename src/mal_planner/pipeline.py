@@ -143,6 +143,8 @@ class Planner:
         if self.options.initializer not in known:  # at start-up, not at the first plan
             raise InvalidInput(f"initializer: unknown planner {self.options.initializer!r} (known: {', '.join(known)})")
         self._optimizer: LandingOptimizer | None = None
+        self._initial: InitialPlan | None = None
+        """The initial plan the latest attempt started from (a fallback may have made a new one)."""
         self.last: PlanResult | None = None
 
     def plan(self, scenario: Scenario, reuse: bool = True, start_time: float = 0.0,
@@ -173,6 +175,7 @@ class Planner:
         if opts.optimize:
             t1 = time.perf_counter()
             landing = self._optimize(scenario, initial, warm, start_time, deadline)
+            initial = self._initial or initial
             timings["optimizer_s"] = time.perf_counter() - t1
         report = None
         if landing is not None and landing.success and opts.verify:
