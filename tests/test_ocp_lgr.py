@@ -83,3 +83,21 @@ def test_error_estimate_zero_for_polynomial_state_and_refine_rules() -> None:
     m = refine(PhaseMesh.uniform(2, 8), np.array([1e-1, 1e-9]), 1e-6, 3, 10)
     # P = ceil(log(1e5)/log(8)) = 6 -> 14 > 10: split into ceil(14/3) = 5 segments of degree 3.
     assert m.degrees == (3, 3, 3, 3, 3, 8) and np.allclose(m.breaks[:6], np.linspace(0, 0.5, 6))
+
+
+def test_interpolation_at_a_mesh_break_gives_the_node_value() -> None:
+    """A sample exactly at a mesh break is the next segment's first collocation point, not the previous
+    segment's extrapolated end (round-off in the time -> fraction mapping used to pick the latter)."""
+    from mal_planner.ocp.solution import PhaseSolution
+
+    mesh = PhaseMesh((0.0, 0.1, 1.0), (4, 5))  # this break and these times round the fraction down
+    lay = layout(mesh)
+    t0, tf = 12.7, 93.1
+    t = t0 + (tf - t0) * (lay.tau + 1.0) / 2.0
+    rng = np.random.default_rng(0)
+    x, u = rng.normal(size=(lay.n_nodes, 2)), rng.normal(size=(lay.n_nodes, 1))
+    phase = PhaseSolution("p", t0, tf, t, x, u, 0.0, lay)
+    k = int(lay.offsets[1])  # first node of the second segment: the break
+    xi, ui = phase.interpolate(t[k:k + 1])
+    np.testing.assert_allclose(ui[0], u[k], rtol=0, atol=1e-12)
+    np.testing.assert_allclose(xi[0], x[k], rtol=0, atol=1e-12)
