@@ -1,4 +1,4 @@
-"""The campaign's PNG figures (matplotlib, Agg backend): all plotting of campaigns lives here."""
+"""The campaign's PNG figures, in the team's figure style (:mod:`mal_planner.figures.style`)."""
 
 from __future__ import annotations
 
@@ -12,19 +12,19 @@ from mal_planner.campaign.summary import STAGES, failure_counts, fit_growth, sta
 
 
 def _pyplot():
-    import matplotlib
+    from mal_planner.figures.style import apply_style
 
-    matplotlib.use("Agg")
+    apply_style()
     import matplotlib.pyplot as plt
 
     return plt
 
 
 def _save(fig, path: Path) -> Path:
+    from mal_planner.figures.style import save
+
     fig.tight_layout()
-    fig.savefig(path, dpi=110)
-    _pyplot().close(fig)
-    return path
+    return save(fig, path)
 
 
 def figure_success(rows: Sequence[dict[str, str]], path: Path) -> Path:
