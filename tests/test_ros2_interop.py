@@ -61,7 +61,7 @@ def planner(tmp_path_factory: pytest.TempPathFactory, mal_msgs_install: dict[str
     assert isinstance(install, Path)
     ros = ros2_env(env, install)
     params = tmp / "planner.params.yaml"
-    params.write_text(coarse_params("    deviation_threshold_m: 0.0\n    figures: false\n"), encoding="utf-8")
+    params.write_text(coarse_params("    deviation_threshold_m: 0.0\n    figures: none\n"), encoding="utf-8")
     args = ["--scenario", str(REPO / "scenarios" / "thesis.yaml"), "--params", str(params)]
     proc = Snippet(f"import sys\nfrom mal_planner.ros.planner_node import main\nsys.exit(main({args!r}))\n", env)
     shared = Planner(proc, env, ros)

@@ -71,7 +71,8 @@ def build_parser() -> argparse.ArgumentParser:
                         help="let the optimizer choose landing times (minimum spacing from the scenario)")
     parser.add_argument("--mesh-tol", type=_positive_float, default=1e-6,
                         help="mesh error tolerance (default: %(default)s)")
-    parser.add_argument("--no-refine", action="store_true", help="solve on the initial mesh only")
+    parser.add_argument("--no-refine", action="store_true",
+                        help="solve on the initial mesh only (no hp refinement, no verification-driven refinement)")
     parser.add_argument("--time-limit", type=_positive_float, default=None, metavar="S",
                         help="wall-clock limit of the planning in seconds; the best result so far is kept "
                              "(default: none)")
@@ -114,7 +115,8 @@ def main(argv: list[str] | None = None) -> int:
     landing = replace(LandingOptions(), guess=args.guess, fixed_landing_times=not args.free_landing_times,
                       mesh_tol=args.mesh_tol, refine=not args.no_refine)
     options = PlanOptions(initializer=args.initializer, seed=args.seed, optimize=not args.initial_only,
-                          landing=landing, time_limit_s=args.time_limit)
+                          landing=landing, time_limit_s=args.time_limit,
+                          refinement_rounds=0 if args.no_refine else PlanOptions.refinement_rounds)
     t0 = time.perf_counter()
     try:
         result = Planner(options).plan(scenario, reuse=False)

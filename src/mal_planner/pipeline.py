@@ -132,9 +132,10 @@ class Planner:
     absolute landing times; the cached NLP is reused unless the order of the events changed (e.g. an
     aircraft has passed the gate since). When a step fails, the next is tried, so a plan never gets stuck
     on a stale state: the warm replan, then a cold solve of the same order, then a fresh initializer; and
-    where the schedule (not the scenario) fixed the landing times, a solve in which the optimizer chooses
-    them. A first plan whose solve fails is tried once more from the initializer with another seed.
-    Aircraft within ``landed_within_s`` of their last planned landing leave the plan quietly.
+    where the schedule fixed the landing times (or on a replan, whose radar states may no longer reach the
+    scenario's times), a solve in which the optimizer chooses them. A first plan whose solve fails is tried
+    once more from the initializer with another seed. Aircraft within ``landed_within_s`` of their last
+    planned landing leave the plan quietly.
     """
 
     def __init__(self, options: PlanOptions | None = None) -> None:
@@ -218,7 +219,11 @@ class Planner:
         else:
             attempts.append(("solve", self._cold_attempt))
             attempts.append(("solve from another initializer seed", self._reseeded_attempt))
-        free_fallback = opts.landing.fixed_landing_times and any(a.landing_time is None for a in scenario.aircraft)
+        # Optimizer-chosen landing times: when the planner made the schedule, or on a replan, where the aircraft
+        # may have drifted (radar) so that the scenario's times can no longer be met: a safe plan at other
+        # times beats none (the plan reports its times; a warning says the fixed ones were given up).
+        free_fallback = opts.landing.fixed_landing_times and (warm or any(a.landing_time is None
+                                                                          for a in scenario.aircraft))
         if free_fallback:
             attempts.append(("optimizer-chosen landing times", self._free_times_attempt))
         landing = None
@@ -277,6 +282,8 @@ class Planner:
         return self._cold_attempt(scenario, start_time, deadline)
 
     def _free_times_attempt(self, scenario: Scenario, start_time: float, deadline: Deadline) -> LandingResult:
+        if all(a.landing_time is not None for a in scenario.aircraft):
+            log.warning("the scenario's landing times cannot be met from these states: the optimizer chooses them")
         free = replace(self.options.landing, fixed_landing_times=False)
         guesses = make_guesses(scenario, self._initial, free)
         return self._new_optimizer(scenario, guesses, free).solve(scenario, deadline=deadline)

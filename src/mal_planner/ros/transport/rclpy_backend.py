@@ -187,7 +187,15 @@ class RclpyNode:
         return str(self.node.resolve_topic_name(name))
 
     def declare_parameter(self, name: str, default: Any = None, description: str = "") -> Parameter:
-        param = self.node.declare_parameter(name, default, ParameterDescriptor(description=description))
+        from rclpy.exceptions import InvalidParameterTypeException
+
+        try:
+            param = self.node.declare_parameter(name, default, ParameterDescriptor(description=description))
+        except InvalidParameterTypeException:
+            # A params file with another type than the default (e.g. the former `figures: false`): let the
+            # node's own check (node_params) decide, as the built-in backend does.
+            param = self.node.declare_parameter(name, default, ParameterDescriptor(description=description,
+                                                                                   dynamic_typing=True))
         return Parameter(name, param.value)
 
     def add_on_set_parameters_callback(self, callback: SetParametersCallback) -> None:
