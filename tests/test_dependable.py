@@ -114,7 +114,7 @@ def test_planned_controls_keep_the_limits_without_clipping(thesis) -> None:
         lim = thesis.aircraft_by_callsign(tr.callsign).limits
         assert np.all(np.abs(tr.controls[:, 0]) <= math.tan(lim.bank_angle_max) * tr.controls[:, 1])
         assert np.all(tr.controls[:, 1] >= lim.n_v[0]) and np.all(tr.controls[:, 1] <= lim.n_v[1])
-    assert result.verification.aircraft[0].max_position_deviation_nm < 2e-3
+    assert result.verification.aircraft[0].max_position_deviation_nm < 5e-3
 
 
 def test_a_failed_plan_never_leaves_the_planner_stuck(thesis) -> None:

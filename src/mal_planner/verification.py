@@ -35,8 +35,9 @@ class Tolerances:
 
     sample_dt: float = 0.05
     """Sampling step of the flown trajectory (the issue asks for <= 0.1 s)."""
-    deviation_nm: float = 0.002
-    """Largest position difference between the published and the re-integrated trajectory."""
+    deviation_nm: float = 0.005
+    """Largest position difference between the published and the re-integrated trajectory (about 9 m; the
+    optimizer's separation margin is twice this, so the published paths keep the separation too)."""
     deviation_angle: float = math.radians(1.0)
     position_nm: float = 1e-3
     """How close to the runway threshold the flown trajectory must end."""

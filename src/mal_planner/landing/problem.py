@@ -39,8 +39,9 @@ class SafetyMargins:
     little on the safe side; where it is not enough the verification finds it and the mesh is refined.
     """
 
-    separation_nm: float = 0.005
-    """Added to the minimum separation (about 9 m)."""
+    separation_nm: float = 0.01
+    """Added to the minimum separation (about 18 m: twice the verification's 0.005 nm tolerance between the
+    published and the flown path, so that the published paths keep the separation as well)."""
     obstacle_nm: float = 0.01
     """Obstacles are inflated by this in every semi-axis (about 18 m)."""
     clearance: float = 1e-4

@@ -103,7 +103,7 @@ PARAMETERS: dict[str, tuple[Any, Check, str]] = {
     "figures": ("png", _figures, "figures rendered into output_dir in a background process after each plan: "
                 "none, png, html (interactive plan.html) or all (true/false: png/none)"),
     "service_timeout_s": (600.0, _float(positive=True), "longest a service call waits for its plan [s]"),
-    "planning_time_limit_s": (0.0, _float(), "wall-clock limit of one plan [s]; when it runs out the best result "
+    "planning_time_limit_s": (60.0, _float(), "wall-clock limit of one plan [s]; when it runs out the best result "
                               "so far is kept (a failure is reported, the last plan stays); 0 = no limit"),
 }
 
