@@ -352,18 +352,15 @@ class PlannerNode:
                 self.planner = Planner(options)
             planner = self.planner
         try:
-            last = planner.last
+            # The Planner falls back by itself (warm, cold, fresh initializer, optimizer-chosen times).
             result = planner.plan(sc, reuse=not explicit, start_time=inputs.plan_start)
-            if self.params.optimize and not result.optimized and last is not None and result.initial is last.initial:
-                status = result.landing.status if result.landing else "not run"
-                log.warning("warm replan failed (%s): planning from scratch", status)
-                result = planner.plan(sc, reuse=False, start_time=inputs.plan_start)
         except Exception as exc:
             log.debug("planning failed", exc_info=True)
             return self._failed(job, inputs, f"planning failed: {' '.join(str(exc).split()) or type(exc).__name__}")
-        if self.params.optimize and not result.optimized and (explicit or self._current is not None):
-            return self._failed(job, inputs, f"optimizer {result.landing.status if result.landing else 'not run'}",
-                                result)
+        failure = result.failure if self.params.optimize else None
+        if failure is not None and (explicit or self._current is not None):
+            # Neither an unoptimized nor an unverified plan replaces the plan that is being followed.
+            return self._failed(job, inputs, f"{failure[0].replace('_', ' ')}: {failure[1]}", result)
         t_plan = time.perf_counter() - t0
         if explicit:  # answered in the response only: the radar plan others follow stays published
             plan_msg = self._landing_plan_msg(result, inputs.plan_start, result.order)
