@@ -401,6 +401,11 @@ def load_scenario(path: str | Path) -> Scenario:
     except UnicodeDecodeError as exc:
         raise ScenarioError(source, "", f"not a text (UTF-8) file: byte {exc.start} is 0x{exc.object[exc.start]:02x}"
                             ) from None
+    return scenario_from_text(text, source)
+
+
+def scenario_from_text(text: str, source: str = "<scenario>") -> Scenario:
+    """Validate a scenario file's text (``source`` names it in errors), as :func:`load_scenario` does."""
     if "\x00" in text:
         raise ScenarioError(source, "", "not a text file (it contains NUL bytes)")
     try:

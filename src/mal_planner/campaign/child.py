@@ -67,27 +67,13 @@ def apply_fault(fault: str, limit_bytes: int | None) -> None:
         raise AssertionError(f"allocated {len(hoard)} GiB beyond the memory limit")
 
 
-def scenario_from_text(text: str, source: str):
-    """Like load_scenario, from the file's text (YAML errors reported the same way)."""
-    import yaml
-
-    from mal_planner.scenario import ScenarioError, parse_scenario
-
-    try:
-        data = yaml.safe_load(text)
-    except yaml.YAMLError as exc:
-        mark = getattr(exc, "problem_mark", None)
-        where = f"line {mark.line + 1}" if mark is not None else ""
-        raise ScenarioError(source, where, f"invalid YAML ({getattr(exc, 'problem', None) or exc})") from None
-    return parse_scenario(data, source)
-
-
 def plan_row(job: dict[str, Any]) -> dict[str, Any]:
     """Load, plan with the normal pipeline (no figures), classify; the row's columns this process knows."""
     from mal_planner.campaign.metrics import plan_columns, scenario_columns
     from mal_planner.campaign.outcome import classify
     from mal_planner.campaign.plan_options import to_plan_options
     from mal_planner.pipeline import Planner
+    from mal_planner.scenario import scenario_from_text
 
     row: dict[str, Any] = {"seed": job["options"]["seed"]}
     fault = injected_fault(job["source"])
