@@ -14,7 +14,8 @@ from mal_planner.initializer.planners import PlanningFailed, known_specs
 from mal_planner.initializer.schedule import check_request
 from mal_planner.initializer.sequencer import InitialPlan, plan_initial
 from mal_planner.landing import LandingOptions, LandingResult
-from mal_planner.landing.solve import LandingOptimizer, make_guesses, shift_guesses
+from mal_planner.landing.sequential import SequentialOptimizer
+from mal_planner.landing.solve import LandingOptimizer, make_guesses, make_optimizer, shift_guesses, uses_sequential
 from mal_planner.scenario import Scenario
 from mal_planner.trajectory import Trajectory
 from mal_planner.verification import Tolerances, VerificationReport, verify
@@ -143,7 +144,7 @@ class Planner:
         known = known_specs()
         if self.options.initializer not in known:  # at start-up, not at the first plan
             raise InvalidInput(f"initializer: unknown planner {self.options.initializer!r} (known: {', '.join(known)})")
-        self._optimizer: LandingOptimizer | None = None
+        self._optimizer: LandingOptimizer | SequentialOptimizer | None = None
         self._initial: InitialPlan | None = None
         """The initial plan the latest attempt started from (a fallback may have made a new one)."""
         self.last: PlanResult | None = None
@@ -212,12 +213,18 @@ class Planner:
         """Solve, falling back step by step (see the class docstring); None if nothing was tried."""
         opts = self.options
         attempts: list[tuple[str, object]] = []
+        # Planned one aircraft at a time, a failure falls back to the joint NLP of the same order first.
+        sequential = uses_sequential(opts.landing, len(scenario.aircraft))
         if warm:
             attempts.append(("warm replan", self._warm_attempt))
             attempts.append(("cold solve of the same order", self._cold_same_order))
+            if sequential:
+                attempts.append(("joint solve of the same order", self._joint_same_order))
             attempts.append(("fresh initializer", self._fresh_initializer))
         else:
             attempts.append(("solve", self._cold_attempt))
+            if sequential:
+                attempts.append(("joint solve", self._joint_attempt))
             attempts.append(("solve from another initializer seed", self._reseeded_attempt))
         # Optimizer-chosen landing times: when the planner made the schedule, or on a replan, where the aircraft
         # may have drifted (radar) so that the scenario's times can no longer be met: a safe plan at other
@@ -246,9 +253,21 @@ class Planner:
         return landing
 
     def _new_optimizer(self, scenario: Scenario, guesses, landing_options: LandingOptions | None = None
-                       ) -> LandingOptimizer:
-        self._optimizer = LandingOptimizer(scenario, guesses, landing_options or self.options.landing)
+                       ) -> LandingOptimizer | SequentialOptimizer:
+        self._optimizer = make_optimizer(scenario, guesses, landing_options or self.options.landing)
         return self._optimizer
+
+    def _joint_attempt(self, scenario: Scenario, start_time: float, deadline: Deadline) -> LandingResult:
+        joint = replace(self.options.landing, strategy="joint")
+        guesses = make_guesses(scenario, self._initial, joint)
+        return self._new_optimizer(scenario, guesses, joint).solve(scenario, deadline=deadline)
+
+    def _joint_same_order(self, scenario: Scenario, start_time: float, deadline: Deadline) -> LandingResult:
+        last = self.last
+        assert last is not None and last.landing is not None
+        guesses = shift_guesses(last.landing, start_time - last.start_time)
+        joint = replace(self.options.landing, strategy="joint")
+        return self._new_optimizer(scenario, guesses, joint).solve(scenario, deadline=deadline)
 
     def _cold_attempt(self, scenario: Scenario, start_time: float, deadline: Deadline) -> LandingResult:
         guesses = make_guesses(scenario, self._initial, self.options.landing)

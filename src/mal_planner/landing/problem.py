@@ -2,7 +2,8 @@
 
 Per phase: the stacked states (x, y, z, gamma, heading) and controls (n_h, n_v) of the aircraft
 airborne in it; path constraints: the thesis's log p-norm obstacle functions (>= 0), the linear bank
-limit, and the squared distance of every pair (>= separation^2). Events: initial states (parameters,
+limit, and the squared distance of every pair that can come close in it (>= separation^2; see
+:mod:`mal_planner.landing.pairs`). Events: initial states (parameters,
 so a replan with new radar states reuses the NLP), continuity of each aircraft between phases (linkage),
 gate conditions (in the hole, level, heading set) at its gate event, runway state at its landing event
 and the landing times (parameters when fixed, spacing constraints when free). Cost, as in the thesis:
@@ -12,8 +13,8 @@ of -sum t_obs (maximising t_obs is only meaningful when t_land is fixed).
 
 from __future__ import annotations
 
-import itertools
 import math
+from collections.abc import Sequence
 from dataclasses import dataclass
 
 import casadi as ca
@@ -22,6 +23,7 @@ import numpy as np
 from mal_planner.dynamics import STATE_NAMES, bank_limit_residuals
 from mal_planner.landing.guess import AircraftGuess
 from mal_planner.landing.layout import PhaseLayout
+from mal_planner.landing.pairs import PhasePairs, all_pairs
 from mal_planner.obstacles import Gate
 from mal_planner.ocp import Phase, PhaseGuess, PhaseMesh, Problem
 from mal_planner.scenario import Aircraft, Scenario
@@ -85,12 +87,16 @@ def _wrap_near(target: float, reference: float) -> float:
 def build_landing_problem(scenario: Scenario, layout: PhaseLayout, guesses: list[AircraftGuess],
                           fixed_landing_times: bool = True, mesh: PhaseMesh | None = None,
                           horizon: float | None = None, margins: SafetyMargins | None = None,
-                          segment_seconds: float | None = None) -> LandingProblem:
+                          segment_seconds: float | None = None, pairs: PhasePairs | None = None,
+                          intruders: Sequence[Intruder] = (), earliest_landing: float | None = None) -> LandingProblem:
     """Assemble the OCP; ``guesses`` are in landing order and place each phase's initial guess.
 
     ``margins`` (see :class:`SafetyMargins`) make every constraint a little stricter than the scenario's.
     ``segment_seconds`` scales the initial mesh to the guessed phase durations: about one segment per that
     many seconds, at most ``mesh``'s segment count (None: ``mesh`` for every phase).
+    ``pairs`` are the pairs each phase keeps separated (see :mod:`mal_planner.landing.pairs`; None: all).
+    ``intruders`` are aircraft with fixed trajectories (planned before) that every aircraft keeps separated
+    from; with free landing times, ``earliest_landing`` bounds the first landing from below.
     """
     n = len(layout.callsigns)
     aircraft = [scenario.aircraft_by_callsign(cs) for cs in layout.callsigns]
@@ -98,16 +104,16 @@ def build_landing_problem(scenario: Scenario, layout: PhaseLayout, guesses: list
     horizon = horizon or 2.0 * max(g.landing_time for g in guesses) + 60.0
     mesh = mesh or PhaseMesh.uniform(4, 6)
     event_times = [ev.time_guess for ev in layout.events]
-    ctx = _Context(scenario, layout, aircraft, guesses, gate, horizon, margins or SafetyMargins())
+    ctx = _Context(scenario, layout, aircraft, guesses, gate, horizon, margins or SafetyMargins(), tuple(intruders))
+    pairs = pairs if pairs is not None else all_pairs(layout)
     phases: list[Phase] = []
     members: list[list[int]] = []
     for k in range(layout.n_phases):
         who = layout.airborne(k)
         members.append(who)
         span = (event_times[k - 1] if k else 0.0, event_times[k])
-        phase_mesh = mesh if segment_seconds is None else PhaseMesh.uniform(
-            int(np.clip(round((span[1] - span[0]) / segment_seconds), 1, mesh.n_segments)), max(mesh.degrees))
-        phases.append(_phase(ctx, k, who, phase_mesh, span))
+        phase_mesh = mesh if segment_seconds is None else _scaled_mesh(mesh, span[1] - span[0], segment_seconds)
+        phases.append(_phase(ctx, k, who, phase_mesh, span, sorted(pairs[k])))
     n_states = len(STATE_NAMES)
 
     def index_of(k: int, i: int) -> int:
@@ -127,10 +133,14 @@ def build_landing_problem(scenario: Scenario, layout: PhaseLayout, guesses: list
         if not fixed_landing_times:
             for i in range(n - 1):
                 out.append(E[layout.event_index("land", i + 1)].tf - E[layout.event_index("land", i)].tf)
+            if earliest_landing is not None:
+                out.append(E[layout.event_index("land", 0)].tf)
         return ca.vertcat(*out)
 
     n_eq = n * n_states + (n if fixed_landing_times else 0)
     spacing = [] if fixed_landing_times else [scenario.landing_spacing_s] * (n - 1)
+    if not fixed_landing_times and earliest_landing is not None:
+        spacing.append(earliest_landing)
     lb = [0.0] * n_eq + spacing
     ub = [0.0] * n_eq + [math.inf] * len(spacing)
 
@@ -144,12 +154,28 @@ def build_landing_problem(scenario: Scenario, layout: PhaseLayout, guesses: list
     problem = Problem(phases=phases, n_params=n * n_states + n, mayer=mayer, events=events,
                       events_lb=lb, events_ub=ub)
     for k in range(layout.n_phases - 1):
-        pairs = []
+        linked = []
         for i in members[k + 1]:
             cs = layout.callsigns[i]
-            pairs += [f"{cs}.{s}" for s in STATE_NAMES]
-        problem.link(phases[k].name, phases[k + 1].name, pairs, time=True)
+            linked += [f"{cs}.{s}" for s in STATE_NAMES]
+        problem.link(phases[k].name, phases[k + 1].name, linked, time=True)
     return LandingProblem(problem, layout, n, fixed_landing_times)
+
+
+MIN_DEGREE = 3
+LANDED_DISTANCE2 = 1e2
+"""The squared distance (nm^2) a separation constraint sees once the intruder has landed: far away."""
+
+
+def _scaled_mesh(mesh: PhaseMesh, duration: float, segment_seconds: float) -> PhaseMesh:
+    """About one segment per ``segment_seconds``; a phase shorter than that gets one segment of a degree
+    in proportion (at least 3). Every phase carries every airborne aircraft, and most of the 2N phases of a
+    long stream are short: full-degree segments there made the NLP grow as N^2 x the degree."""
+    degree = max(mesh.degrees)
+    segments = int(np.clip(round(duration / segment_seconds), 1, mesh.n_segments))
+    if duration < segment_seconds:
+        degree = int(np.clip(math.ceil(degree * duration / segment_seconds), MIN_DEGREE, degree))
+    return PhaseMesh.uniform(segments, degree)
 
 
 @dataclass(frozen=True)
@@ -164,10 +190,30 @@ class _Context:
     gate: Gate | None
     horizon: float
     margins: SafetyMargins
+    intruders: tuple[Intruder, ...] = ()
 
 
-def _phase(ctx: _Context, k: int, who: list[int], mesh: PhaseMesh, guess_span: tuple[float, float]) -> Phase:
-    """Phase ``k`` with the aircraft ``who`` (landing-order indices) airborne in it."""
+@dataclass(frozen=True)
+class Intruder:
+    """An aircraft whose trajectory is fixed (planned before): the others keep separated from it while it flies."""
+
+    callsign: str
+    position: ca.Function
+    """t (s) -> (x, y, z) nm, a smooth interpolant of the planned path."""
+    t_end: float
+    """It has landed after this time."""
+
+    @classmethod
+    def from_trajectory(cls, t: np.ndarray, positions: np.ndarray, callsign: str, dt: float = 0.5) -> Intruder:
+        grid = np.append(np.arange(t[0], t[-1] - 0.5 * dt, dt), t[-1])
+        values = np.column_stack([np.interp(grid, t, positions[:, k]) for k in range(3)])
+        return cls(callsign, ca.interpolant(f"{callsign}_path", "bspline", [grid], values.ravel()), float(t[-1]))
+
+
+def _phase(ctx: _Context, k: int, who: list[int], mesh: PhaseMesh, guess_span: tuple[float, float],
+           separated: list[tuple[int, int]]) -> Phase:
+    """Phase ``k`` with the aircraft ``who`` (landing-order indices) airborne in it, keeping the pairs
+    ``separated`` (landing-order indices) apart."""
     scenario, layout, aircraft, guesses, gate = ctx.scenario, ctx.layout, ctx.aircraft, ctx.guesses, ctx.gate
     horizon, margins = ctx.horizon, ctx.margins
     space_lo, space_hi = scenario.airspace[:, 0] + margins.airspace_nm, scenario.airspace[:, 1] - margins.airspace_nm
@@ -215,7 +261,7 @@ def _phase(ctx: _Context, k: int, who: list[int], mesh: PhaseMesh, guess_span: t
         [ob for ob in obstacles if _overlaps(ob.bounding_box(), x_lb[5 * j:5 * j + 3], x_ub[5 * j:5 * j + 3])]
         for j in range(len(who))
     ]
-    pairs = list(itertools.combinations(range(n_ac), 2))
+    pairs = [(who.index(a), who.index(b)) for a, b in separated]
 
     def dynamics(x, u, t, p):
         return ca.vertcat(*[m.rhs(x[5 * j:5 * j + 5], u[2 * j:2 * j + 2]) for j, m in enumerate(models)])
@@ -238,6 +284,10 @@ def _phase(ctx: _Context, k: int, who: list[int], mesh: PhaseMesh, guess_span: t
         for a, b in pairs:
             d = x[5 * a:5 * a + 3] - x[5 * b:5 * b + 3]
             out.append(ca.sumsqr(d))
+        for j in range(n_ac):
+            for other in ctx.intruders:  # once it has landed, an intruder no longer counts
+                d2 = ca.sumsqr(x[5 * j:5 * j + 3] - other.position(t))
+                out.append(ca.if_else(t <= other.t_end, d2, LANDED_DISTANCE2))
         return ca.vertcat(*out)
 
     p_lb, p_ub = [], []
@@ -245,8 +295,8 @@ def _phase(ctx: _Context, k: int, who: list[int], mesh: PhaseMesh, guess_span: t
         p_lb += [margins.clearance] * len(relevant[j]) + [-math.inf, -math.inf]
         p_ub += [math.inf] * len(relevant[j]) + [0.0, 0.0]
     sep2 = (scenario.separation_nm + margins.separation_nm) ** 2
-    p_lb += [sep2] * len(pairs)
-    p_ub += [math.inf] * len(pairs)
+    p_lb += [sep2] * (len(pairs) + n_ac * len(ctx.intruders))
+    p_ub += [math.inf] * (len(pairs) + n_ac * len(ctx.intruders))
 
     return Phase(
         name=layout.phase_name(k),

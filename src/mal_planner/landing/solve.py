@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import logging
 import time
+from collections.abc import Sequence
 from dataclasses import dataclass, field
 from typing import Literal
 
@@ -13,7 +14,14 @@ from mal_planner.initializer.schedule import make_schedule
 from mal_planner.initializer.timing import earliest_landing_times
 from mal_planner.landing.guess import AircraftGuess, guess_from_initial_plan, straight_line_guess
 from mal_planner.landing.layout import PhaseLayout, plan_layout
-from mal_planner.landing.problem import LandingProblem, SafetyMargins, build_landing_problem, phase_guesses
+from mal_planner.landing.pairs import PairScreen, PhasePairs, all_pairs, close_unconstrained, count, screen_pairs
+from mal_planner.landing.problem import (
+    Intruder,
+    LandingProblem,
+    SafetyMargins,
+    build_landing_problem,
+    phase_guesses,
+)
 from mal_planner.ocp import MeshIteration, OCPOptions, OCPSolution, OCPSolver, PhaseMesh
 from mal_planner.scenario import Scenario
 from mal_planner.trajectory import Trajectory
@@ -60,6 +68,14 @@ class LandingOptions:
     """How much stricter than the scenario the NLP is (the verification allows no tolerance)."""
     ipopt: dict = field(default_factory=lambda: dict(LANDING_IPOPT))
     """IPOPT options on top of the engine's defaults (see LANDING_IPOPT)."""
+    strategy: Literal["auto", "joint", "sequential"] = "auto"
+    """joint: one NLP for all aircraft; sequential: one small NLP per aircraft in landing order against the
+    fixed plans of those before it (:mod:`mal_planner.landing.sequential`); auto: sequential from
+    ``sequential_from`` aircraft on, joint below (the thesis's 3 aircraft are planned jointly)."""
+    sequential_from: int = 4
+    pair_screen: PairScreen | None = field(default_factory=PairScreen)
+    """Separation constraints only for pairs that can come close (see :mod:`mal_planner.landing.pairs`);
+    None: every pair in every phase."""
 
 
 @dataclass
@@ -80,11 +96,15 @@ class LandingResult:
     phase_names: list[str] = field(default_factory=list)
     required_landing_times: dict[str, float] = field(default_factory=dict)
     """The landing times the problem was given (fixed mode), relative to the plan start."""
+    parts: list[LandingResult] = field(default_factory=list)
+    """Sequential decomposition: the per-aircraft results in landing order (empty for a joint solve)."""
+    strategy: str = "joint"
 
     def stats(self) -> dict:
         return {
             "success": self.success,
             "status": self.status,
+            "strategy": self.strategy,
             "objective": self.objective,
             "solve_time_s": self.solve_time,
             "build_time_s": self.build_time,
@@ -127,21 +147,68 @@ class LandingOptimizer:
     Times are relative to the plan start (t = 0 at the scenario's initial states).
     """
 
-    def __init__(self, scenario: Scenario, guesses: list[AircraftGuess], options: LandingOptions) -> None:
+    def __init__(self, scenario: Scenario, guesses: list[AircraftGuess], options: LandingOptions,
+                 intruders: Sequence[Intruder] = (), earliest_landing: float | None = None) -> None:
         self.scenario = scenario
         self.options = options
+        self.intruders = tuple(intruders)
+        self.earliest_landing = earliest_landing
         self.layout = layout_for(scenario, guesses)
         self.landing_times = [g.landing_time for g in guesses]
+        self._guesses = guesses
         t0 = time.perf_counter()
+        screen = options.pair_screen
+        self.pairs: PhasePairs = (all_pairs(self.layout) if screen is None else
+                                  screen_pairs(self.layout, guesses, scenario.separation_nm, screen))
+        self._build()
+        self.setup_time = time.perf_counter() - t0
+
+    def _build(self) -> None:
+        options = self.options
         self.problem: LandingProblem = build_landing_problem(
-            scenario, self.layout, guesses, options.fixed_landing_times,
+            self.scenario, self.layout, self._guesses, options.fixed_landing_times,
             PhaseMesh.uniform(options.segments, options.degree), margins=options.margins,
-            segment_seconds=options.segment_seconds)
+            segment_seconds=options.segment_seconds, pairs=self.pairs, intruders=self.intruders,
+            earliest_landing=self.earliest_landing)
         self.solver = OCPSolver(self.problem.problem, OCPOptions(
             tol=options.nlp_tol, max_iter=options.max_nlp_iterations, refine=options.refine,
             mesh_tol=options.mesh_tol, n_min=options.n_min, n_max=options.n_max,
             max_mesh_iterations=options.max_mesh_iterations, ipopt=dict(options.ipopt)))
-        self.setup_time = time.perf_counter() - t0
+        log.debug("separation constraints on %d of %d phase pairs", count(self.pairs), count(all_pairs(self.layout)))
+
+    def _with_close_pairs(self, result: LandingResult, scenario: Scenario, deadline) -> LandingResult:
+        """Re-solve (warm) with every unconstrained pair that came close added, until none does."""
+        screen = self.options.pair_screen
+        rounds = 0
+        while screen is not None and result.success and rounds < screen.max_rounds:
+            if deadline is not None and deadline.expired():
+                break
+            samples = []
+            for phase in result.solution.phases:
+                t = np.linspace(phase.t0, phase.tf, max(20, int(np.ceil((phase.tf - phase.t0) / 0.5)) + 1))
+                samples.append((t, phase.interpolate(t)[0]))
+            close = close_unconstrained(self.layout, samples, self.pairs,
+                                        scenario.separation_nm + screen.recheck_nm)
+            if not count(close):
+                break
+            rounds += 1
+            self.pairs = [have | new for have, new in zip(self.pairs, close, strict=True)]
+            log.info("separation: %d more phase pairs came close; re-solving with %d", count(close), count(self.pairs))
+            self._build()
+            landing_times = [result.required_landing_times[cs] for cs in self.layout.callsigns]
+            params = self.problem.params(scenario, landing_times)
+            t0 = time.perf_counter()
+            # On the mesh already refined: the added pairs move the solution a little, not its accuracy.
+            sol = self.solver.solve(params, guess=result.solution, meshes=result.solution.meshes, warm=True,
+                                    refine_mesh=False, deadline=deadline)
+            again = self._result(sol, time.perf_counter() - t0, sum(m.build_time for m in sol.mesh_history),
+                                 landing_times)
+            again.solve_time += result.solve_time
+            again.build_time += result.build_time
+            again.nlp_iterations += result.nlp_iterations
+            again.mesh_history = result.mesh_history + again.mesh_history
+            result = again
+        return result
 
     def accepts(self, scenario: Scenario, guesses: list[AircraftGuess]) -> bool:
         """True if the cached NLP fits (same aircraft, obstacles, gates and event order)."""
@@ -169,7 +236,7 @@ class LandingOptimizer:
         build_time = sum(m.build_time for m in sol.mesh_history)
         log.info("optimizer: %s in %.2f s (%d NLP builds, objective %.4f)", sol.status, wall,
                  self.solver.n_builds - builds_before, sol.objective)
-        return self._result(sol, wall, build_time, landing_times)
+        return self._with_close_pairs(self._result(sol, wall, build_time, landing_times), scenario, deadline)
 
     def refine_at(self, previous: LandingResult, times: list[float], scenario: Scenario | None = None,
                   deadline=None) -> LandingResult:
@@ -197,7 +264,7 @@ class LandingOptimizer:
         result.build_time += previous.build_time
         result.nlp_iterations += previous.nlp_iterations
         result.mesh_history = previous.mesh_history + result.mesh_history
-        return result
+        return self._with_close_pairs(result, scenario, deadline)
 
     def _result(self, sol: OCPSolution, wall: float, build_time: float, required: list[float]) -> LandingResult:
         lay = self.layout
@@ -271,8 +338,22 @@ def make_guesses(scenario: Scenario, initial_plan, options: LandingOptions) -> l
     return guess_from_initial_plan(scenario, initial_plan.trajectories, landing)
 
 
+def uses_sequential(options: LandingOptions, n_aircraft: int) -> bool:
+    """Whether ``options.strategy`` plans ``n_aircraft`` one at a time."""
+    return options.strategy == "sequential" or (options.strategy == "auto" and n_aircraft >= options.sequential_from)
+
+
+def make_optimizer(scenario: Scenario, guesses: list[AircraftGuess], options: LandingOptions):
+    """The optimizer ``options.strategy`` asks for: a :class:`LandingOptimizer` or a SequentialOptimizer."""
+    if uses_sequential(options, len(guesses)):
+        from mal_planner.landing.sequential import SequentialOptimizer
+
+        return SequentialOptimizer(scenario, guesses, options)
+    return LandingOptimizer(scenario, guesses, options)
+
+
 def optimize_landing(scenario: Scenario, initial_plan=None, options: LandingOptions | None = None) -> LandingResult:
     """One-shot: build and solve (see :class:`LandingOptimizer` for re-solving)."""
     options = options or LandingOptions()
     guesses = make_guesses(scenario, initial_plan, options)
-    return LandingOptimizer(scenario, guesses, options).solve()
+    return make_optimizer(scenario, guesses, options).solve()

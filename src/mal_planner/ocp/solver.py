@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import logging
+from collections import OrderedDict
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
 from typing import Any
@@ -45,6 +46,9 @@ class OCPOptions:
         default_factory=lambda: {"mu_init": 1e-5, "bound_push": 1e-6, "bound_frac": 1e-6}
     )
     callback: Callable[[MeshIteration], None] | None = None
+    cached_nlps: int = 3
+    """NLPs kept for re-solves (least recently used dropped): a replan reuses the final mesh's; the
+    intermediate meshes of a refinement would otherwise hold memory (20 aircraft: ~300 MB each)."""
 
     def nlpsol_options(self, warm: bool = False) -> dict[str, Any]:
         """CasADi ``nlpsol`` options; ``warm`` adds ``warm_ipopt`` (small initial barrier)."""
@@ -85,7 +89,7 @@ class OCPSolver:
         self._funcs = [phase_function(ph, problem.n_params) for ph in problem.phases]
         self._f_only = [_first_output(f) for f in self._funcs]
         self._f_maps: dict[tuple[int, int], ca.Function] = {}
-        self._cache: dict[MeshKey, Transcription] = {}
+        self._cache: OrderedDict[MeshKey, Transcription] = OrderedDict()
         self._nlp_opts = {False: self.options.nlpsol_options(), True: self.options.nlpsol_options(True)}
         self.n_builds = 0
         self.watch = IterationWatch()
@@ -97,9 +101,12 @@ class OCPSolver:
         key = (tuple(m.key() for m in meshes), warm)
         tr = self._cache.get(key)
         if tr is not None:
+            self._cache.move_to_end(key)
             return tr, False
         tr = Transcription(self.problem, meshes, self._funcs, self._nlp_opts[warm], self.watch)
         self._cache[key] = tr
+        while len(self._cache) > self.options.cached_nlps:  # the meshes passed on the way stay cheap to drop
+            self._cache.popitem(last=False)
         self.n_builds += 1
         return tr, True
 

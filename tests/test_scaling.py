@@ -1,0 +1,81 @@
+"""What keeps the landing NLP small as N grows: screened separation pairs, short phases on small meshes."""
+
+from __future__ import annotations
+
+import logging
+import math
+from dataclasses import replace
+
+import numpy as np
+import pytest
+
+from mal_planner.landing import AircraftGuess, LandingOptions, plan_layout
+from mal_planner.landing.pairs import PairScreen, all_pairs, close_unconstrained, count, screen_pairs
+from mal_planner.landing.problem import _scaled_mesh
+from mal_planner.ocp import PhaseMesh
+from mal_planner.pipeline import Planner, PlanOptions
+from mal_planner.scenario import load_scenario
+
+
+def _straight(callsign: str, start: tuple[float, float], end: tuple[float, float], t_land: float) -> AircraftGuess:
+    t = np.linspace(0.0, t_land, 101)
+    s = t / t_land
+    xy = np.outer(1 - s, start) + np.outer(s, end)
+    states = np.column_stack([xy, np.full_like(t, 0.1), np.zeros_like(t), np.zeros_like(t)])
+    return AircraftGuess(callsign, t, states, t_land, None)
+
+
+def test_screening_keeps_only_the_pairs_that_come_close() -> None:
+    """A and B converge on the same point at the same time; C stays 5 nm away from both all along."""
+    guesses = [_straight("A", (0.0, 0.0), (2.0, 0.0), 100.0), _straight("B", (2.0, 2.0), (2.0, 0.1), 101.0),
+               _straight("C", (0.0, 5.0), (0.0, 8.0), 102.0)]
+    layout = plan_layout(["A", "B", "C"], [g.landing_time for g in guesses], None)
+    pairs = screen_pairs(layout, guesses, 0.25, PairScreen(near_nm=0.5, slack_s=5.0))
+    assert count(all_pairs(layout)) == 4  # phase 1: AB AC BC; phase 2: BC
+    assert pairs[0] == {(0, 1)} and pairs[1] == set() and pairs[2] == set()
+    # The same check on "solved" samples: an unconstrained pair that came close is reported.
+    t = np.linspace(0.0, 100.0, 11)
+    x = np.hstack([g.state_at(t) for g in guesses])
+    close = close_unconstrained(layout, [(t, x), (t, x[:, 5:]), (t, x[:, 10:])], [set(), set(), set()], 0.3)
+    assert close[0] == {(0, 1)}
+
+
+def test_short_phases_get_small_meshes() -> None:
+    mesh = PhaseMesh.uniform(4, 6)
+    assert _scaled_mesh(mesh, 200.0, 20.0).degrees == (6,) * 4
+    assert _scaled_mesh(mesh, 20.0, 20.0).degrees == (6,)
+    assert _scaled_mesh(mesh, 10.0, 20.0).degrees == (3,)
+    assert _scaled_mesh(mesh, 15.0, 20.0).degrees == (5,)
+    assert _scaled_mesh(mesh, 0.5, 20.0).degrees == (3,)
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("strategy", ["joint", "sequential"])
+def test_pairs_screened_out_are_added_back_when_they_come_close(caplog, strategy) -> None:
+    """With no pair (joint) or intruder (sequential) constrained up front, the solve lets aircraft come close;
+    the optimizer then adds those and re-solves, and the plan is verified (the verification checks every
+    pair)."""
+    scenario = load_scenario("scenarios/five_aircraft.yaml")
+    nothing = PairScreen(near_nm=-math.inf, recheck_nm=0.1)
+    landing = replace(LandingOptions(), pair_screen=nothing, strategy=strategy)
+    planner = Planner(PlanOptions(seed=0, landing=landing))
+    with caplog.at_level(logging.INFO, logger="mal_planner.optimizer"):
+        result = planner.plan(scenario)
+    assert result.landing.strategy == strategy
+    assert any("came close; re-solving" in r.getMessage() for r in caplog.records)
+    if strategy == "joint":
+        added = planner._optimizer.pairs
+        assert 0 < count(added) < count(all_pairs(planner._optimizer.layout))
+    else:
+        assert [p.trajectories[0].callsign for p in result.landing.parts] == result.order
+    assert result.verified, result.verification.reasons if result.verification else result.failure
+    assert min(p.min_distance_nm for p in result.verification.pairs) >= scenario.separation_nm
+
+
+def test_auto_strategy_plans_the_thesis_jointly_and_larger_streams_one_at_a_time() -> None:
+    from mal_planner.landing.solve import uses_sequential
+
+    options = LandingOptions()
+    assert not uses_sequential(options, 3) and uses_sequential(options, options.sequential_from)
+    assert not uses_sequential(replace(options, strategy="joint"), 20)
+    assert uses_sequential(replace(options, strategy="sequential"), 2)
