@@ -239,6 +239,20 @@ def child_nlp_size(scenario_path: str) -> dict[str, Any]:
         out["hess_note"] = hess.name_out(0)
     except Exception as exc:  # older/newer CasADi without these names: sizes only
         out["nnz_error"] = str(exc)
+    # What the planner solves from LandingOptions.sequential_from aircraft on: one NLP per aircraft.
+    from dataclasses import replace
+
+    from mal_planner.landing.solve import uses_sequential
+
+    out["strategy"] = "sequential" if uses_sequential(options, len(sc.aircraft)) else "joint"
+    per_aircraft = []
+    for guess in make_guesses(sc, initial, options):
+        sub = replace(sc, aircraft=(sc.aircraft_by_callsign(guess.callsign),))
+        one = LandingOptimizer(sub, [guess], options)
+        one_tr, _ = one.solver.transcription(tuple(ph.mesh for ph in one.problem.problem.phases))
+        per_aircraft.append(int(one_tr.n_w))
+    out["per_aircraft_variables_max"] = max(per_aircraft)
+    out["per_aircraft_variables_sum"] = sum(per_aircraft)
     return out
 
 
@@ -532,8 +546,9 @@ def write_markdown(path: Path, meta: dict[str, Any], rows: list[dict[str, Any]],
         "(Hessian: upper triangle, as IPOPT takes it).", "",
         "## Whole process per N", "",
         "| N | verified/runs | total s | initializer s | optimizer s | verification s | other s | IPOPT it | "
-        "mesh it | NLP vars | constraints | Jac nnz | Hess nnz | peak RSS MB | CPU s |",
-        "|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|",
+        "mesh it | strategy | joint NLP vars | constraints | Jac nnz | Hess nnz | per-aircraft NLP vars (max / sum) | "
+        "peak RSS MB | CPU s |",
+        "|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|",
     ]
     for n in sizes:
         s = size_summary(rows, f"n{n}")
@@ -541,9 +556,10 @@ def write_markdown(path: Path, meta: dict[str, Any], rows: list[dict[str, Any]],
         note = "" if not s["hit_limit"] else f" ({s['hit_limit']} at the limit)"
         lines.append(f"| {n} | {s['verified']}/{s['runs']}{note} | {_f(s['total_s'])} | {_f(s['initializer_s'])} | "
                      f"{_f(s['optimizer_s'])} | {_f(s['verification_s'])} | {_f(s['other_s'])} | "
-                     f"{_i(s['nlp_iterations'])} | {_i(s['mesh_iterations'])} | {_i(nlp.get('variables'))} | "
-                     f"{_i(nlp.get('constraints'))} | {_i(nlp.get('jac_nnz'))} | {_i(nlp.get('hess_nnz'))} | "
-                     f"{_f(s['peak_rss_mb'], 0)} | {_f(s['cpu_s'], 1)} |")
+                     f"{_i(s['nlp_iterations'])} | {_i(s['mesh_iterations'])} | {nlp.get('strategy', '-')} | "
+                     f"{_i(nlp.get('variables'))} | {_i(nlp.get('constraints'))} | {_i(nlp.get('jac_nnz'))} | "
+                     f"{_i(nlp.get('hess_nnz'))} | {_i(nlp.get('per_aircraft_variables_max'))} / "
+                     f"{_i(nlp.get('per_aircraft_variables_sum'))} | {_f(s['peak_rss_mb'], 0)} | {_f(s['cpu_s'], 1)} |")
     lines.append("")
     if fit is not None:
         k, c = fit

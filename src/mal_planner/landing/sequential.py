@@ -64,8 +64,7 @@ class SequentialOptimizer:
               guesses: list[AircraftGuess] | None = None, deadline=None) -> LandingResult:
         scenario = scenario or self.scenario
         guesses = guesses if guesses is not None else self._guesses
-        previous = list(warm.parts) if warm is not None and len(warm.parts) == len(guesses) else None
-        return self._solve_all(scenario, guesses, previous, None, deadline)
+        return self._solve_all(scenario, guesses, list(warm.parts) if warm is not None else None, None, deadline)
 
     def refine_at(self, previous: LandingResult, times: list[float], scenario: Scenario | None = None,
                   deadline=None) -> LandingResult:
@@ -92,6 +91,7 @@ class SequentialOptimizer:
         screen = self.screen
         sep = scenario.separation_nm
         parts: list[LandingResult] = []
+        before_by_callsign = {p.trajectories[0].callsign: p for p in previous or [] if p.trajectories}
         flown: list[tuple[str, np.ndarray, np.ndarray]] = []  # callsign, t, positions of the planned ones
         t_start = time.perf_counter()
         for i, guess in enumerate(guesses):
@@ -110,7 +110,7 @@ class SequentialOptimizer:
             for _ in range(screen.max_rounds + 1):
                 intruders = [Intruder.from_trajectory(flown[k][1], flown[k][2], flown[k][0]) for k in near]
                 opt = LandingOptimizer(sub, [guess], options, intruders=intruders, earliest_landing=earliest)
-                before = previous[i] if previous is not None else None
+                before = before_by_callsign.get(guess.callsign)
                 if before is not None and before.layout.signature() != opt.layout.signature():
                     before = None
                 params = opt.problem.params(sub, [guess.landing_time])
