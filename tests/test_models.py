@@ -15,6 +15,7 @@ from mal_planner.dynamics import (
     bank_angle,
     bank_limit_residuals,
     make_dynamics,
+    stacked_model,
 )
 from mal_planner.obstacles import Superquadric, wall_with_hole
 from mal_planner.scenario import load_scenario
@@ -49,6 +50,22 @@ def test_rhs_same_on_casadi_and_numpy() -> None:
     # Vectorised over many states (trailing axis).
     many = np.tile(state[:, None], (1, 4))
     assert model.rhs(many, np.tile(control[:, None], (1, 4))).shape == (5, 4)
+
+
+def test_stacked_model_evaluates_each_vehicle_with_its_own_parameters() -> None:
+    models = [make_dynamics("point_mass", 0.04), make_dynamics("point_mass", 0.06), make_dynamics("point_mass", 0.05)]
+    rng = np.random.default_rng(0)
+    states = rng.uniform(-0.3, 0.3, (5, 7))
+    controls = rng.uniform(0.0, 1.5, (2, 7))
+    index = np.array([0, 2, 1, 1, 0, 2, 2])
+    together = stacked_model(models, index).rhs(states, controls)
+    for j, i in enumerate(index):
+        np.testing.assert_allclose(together[:, j], models[i].rhs(states[:, j], controls[:, j]), rtol=1e-15)
+    np.testing.assert_allclose(stacked_model(models).rhs(states[:, :3], controls[:, :3])[:, 1],
+                               models[1].rhs(states[:, 1], controls[:, 1]), rtol=1e-15)
+    assert stacked_model([models[0], models[0]]) == models[0]
+    with pytest.raises(TypeError):
+        stacked_model([models[0], make_dynamics("rotorcraft", 0.02)])
 
 
 def test_registry_and_rotorcraft() -> None:
