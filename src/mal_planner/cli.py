@@ -69,6 +69,10 @@ def build_parser() -> argparse.ArgumentParser:
                         help="optimizer initial guess: the initializer's paths or naive straight lines")
     parser.add_argument("--free-landing-times", action="store_true",
                         help="let the optimizer choose landing times (minimum spacing from the scenario)")
+    parser.add_argument("--strategy", choices=["auto", "joint", "sequential"], default="auto",
+                        help="one NLP for all aircraft (joint) or one per aircraft in landing order against the "
+                             "plans of those before it (sequential); auto: sequential from 4 aircraft on "
+                             "(default: auto)")
     parser.add_argument("--mesh-tol", type=_positive_float, default=1e-6,
                         help="mesh error tolerance (default: %(default)s)")
     parser.add_argument("--no-refine", action="store_true",
@@ -113,7 +117,7 @@ def main(argv: list[str] | None = None) -> int:
               f"(known: {', '.join(known_specs())})", file=sys.stderr)
         return 2
     landing = replace(LandingOptions(), guess=args.guess, fixed_landing_times=not args.free_landing_times,
-                      mesh_tol=args.mesh_tol, refine=not args.no_refine)
+                      mesh_tol=args.mesh_tol, refine=not args.no_refine, strategy=args.strategy)
     options = PlanOptions(initializer=args.initializer, seed=args.seed, optimize=not args.initial_only,
                           landing=landing, time_limit_s=args.time_limit,
                           refinement_rounds=0 if args.no_refine else PlanOptions.refinement_rounds)

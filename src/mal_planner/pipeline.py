@@ -320,7 +320,8 @@ class Planner:
             if report.verified or not times or self._optimizer is None or deadline.expired():
                 break
             log.info("verification round %d: %s; refining the mesh there", round_ + 1, "; ".join(report.reasons[:3]))
-            refined = self._optimizer.refine_at(landing, times, scenario, deadline=deadline)
+            refined = self._optimizer.refine_at(landing, times, scenario, deadline=deadline,
+                                                callsigns=report.violating_callsigns())
             if not refined.success:
                 break
             landing = refined

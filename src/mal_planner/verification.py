@@ -97,6 +97,11 @@ class VerificationReport:
     def to_dict(self) -> dict:
         return asdict(self)
 
+    def violating_callsigns(self) -> set[str]:
+        """The aircraft with a violation time (both of a pair that comes too close)."""
+        out = {cs for p in self.pairs if p.violation_times_s for cs in p.pair.split("-")}
+        return out | {a.callsign for a in self.aircraft if a.obstacle_hit_times_s or a.limit_violation_times_s}
+
     def violation_times(self) -> list[float]:
         """Times at which a safety minimum is broken (for refining the mesh there)."""
         times = [t for p in self.pairs for t in p.violation_times_s]

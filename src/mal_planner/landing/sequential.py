@@ -57,18 +57,24 @@ class SequentialOptimizer:
         return self.options.pair_screen or PairScreen(near_nm=float("inf"), recheck_nm=float("inf"))
 
     def accepts(self, scenario: Scenario, guesses: list[AircraftGuess]) -> bool:
+        """Same obstacles, gates and landing order: each aircraft's own NLP (whose events may have moved
+        against the others') is then warm-started from its previous plan."""
         return (scenario.obstacles == self.scenario.obstacles and scenario.gates == self.scenario.gates
-                and layout_for(scenario, guesses).signature() == self.layout.signature())
+                and [g.callsign for g in guesses] == list(self.layout.callsigns))
 
     def solve(self, scenario: Scenario | None = None, warm: LandingResult | None = None,
               guesses: list[AircraftGuess] | None = None, deadline=None) -> LandingResult:
         scenario = scenario or self.scenario
         guesses = guesses if guesses is not None else self._guesses
+        self.layout = layout_for(scenario, guesses)
         return self._solve_all(scenario, guesses, list(warm.parts) if warm is not None else None, None, deadline)
 
     def refine_at(self, previous: LandingResult, times: list[float], scenario: Scenario | None = None,
-                  deadline=None) -> LandingResult:
-        """Re-solve every aircraft (in order, warm) with its mesh segments containing ``times`` split."""
+                  deadline=None, callsigns: set[str] | None = None) -> LandingResult:
+        """Re-solve the aircraft ``callsigns`` (default: all; warm, in landing order against the others'
+        plans) with their mesh segments containing ``times`` split; the others keep their plans. The
+        margins absorb the small change a refinement makes to an intruder's path, and the verification
+        that follows checks every pair again."""
         scenario = scenario or self.scenario
         guesses = [_guess_from(part) for part in previous.parts]
         meshes = []
@@ -79,24 +85,33 @@ class SequentialOptimizer:
                 fracs = [(t - phase.t0) / duration for t in times if phase.t0 <= t <= phase.tf and duration > 0]
                 split.append(split_segments(mesh, fracs))
             meshes.append(split)
-        result = self._solve_all(scenario, guesses, list(previous.parts), meshes, deadline)
+        result = self._solve_all(scenario, guesses, list(previous.parts), meshes, deadline, only=callsigns)
         result.solve_time += previous.solve_time
+        result.build_time += previous.build_time
         result.nlp_iterations += previous.nlp_iterations
         result.mesh_history = previous.mesh_history + result.mesh_history
         return result
 
     def _solve_all(self, scenario: Scenario, guesses: Sequence[AircraftGuess], previous: list[LandingResult] | None,
-                   meshes: list | None, deadline) -> LandingResult:
+                   meshes: list | None, deadline, only: set[str] | None = None) -> LandingResult:
         options = replace(self.options, pair_screen=None)
         screen = self.screen
         sep = scenario.separation_nm
         parts: list[LandingResult] = []
         before_by_callsign = {p.trajectories[0].callsign: p for p in previous or [] if p.trajectories}
+        kept_parts: list[LandingResult] = []
         flown: list[tuple[str, np.ndarray, np.ndarray]] = []  # callsign, t, positions of the planned ones
         t_start = time.perf_counter()
         for i, guess in enumerate(guesses):
             if deadline is not None and deadline.expired():
                 break
+            kept = before_by_callsign.get(guess.callsign) if only is not None and guess.callsign not in only else None
+            if kept is not None:
+                kept_parts.append(kept)
+                parts.append(kept)
+                tr = kept.trajectories[0]
+                flown.append((tr.callsign, tr.t, tr.positions))
+                continue
             own = scenario.aircraft_by_callsign(guess.callsign)
             sub = replace(scenario, aircraft=(own,))
             near = [k for k, (_, t, pos) in enumerate(flown)
@@ -145,7 +160,8 @@ class SequentialOptimizer:
             flown.append((tr.callsign, tr.t, tr.positions))
             log.debug("sequential: %s planned against %d of %d earlier aircraft", guess.callsign, len(near), i)
         wall = time.perf_counter() - t_start
-        return _combine(parts, len(guesses), self.layout, wall)
+        solved = [p for p in parts if all(p is not k for k in kept_parts)]
+        return _combine(parts, len(guesses), self.layout, wall, solved=solved)
 
 
 def _guess_distance(guess: AircraftGuess, t: np.ndarray, pos: np.ndarray) -> float:
@@ -171,8 +187,9 @@ def _guess_from(part: LandingResult) -> AircraftGuess:
     return AircraftGuess(tr.callsign, t, states, part.landing_times[tr.callsign], part.gate_times[tr.callsign])
 
 
-def _combine(parts: list[LandingResult], n: int, layout, wall: float) -> LandingResult:
-    """One result for all aircraft (failed if any part failed or is missing)."""
+def _combine(parts: list[LandingResult], n: int, layout, wall: float, solved: list[LandingResult]) -> LandingResult:
+    """One result for all aircraft (failed if any part failed or is missing); the effort counts the parts
+    ``solved`` now."""
     success = len(parts) == n and all(p.success for p in parts)
     failed = next((p for p in parts if not p.success), None)
     status = parts[-1].status if success else (
@@ -185,9 +202,9 @@ def _combine(parts: list[LandingResult], n: int, layout, wall: float) -> Landing
     return LandingResult(
         success=success, status=status, trajectories=[tr for p in parts for tr in p.trajectories],
         gate_times=merged["gate_times"], landing_times=merged["landing_times"],
-        objective=sum(p.objective for p in parts), solve_time=wall, build_time=sum(p.build_time for p in parts),
-        nlp_iterations=sum(p.nlp_iterations for p in parts),
-        mesh_history=[m for p in parts for m in p.mesh_history], layout=layout,
+        objective=sum(p.objective for p in parts), solve_time=wall, build_time=sum(p.build_time for p in solved),
+        nlp_iterations=sum(p.nlp_iterations for p in solved),
+        mesh_history=[m for p in solved for m in p.mesh_history], layout=layout,
         solution=parts[-1].solution if parts else None,  # type: ignore[arg-type]
         phase_names=[f"{p.trajectories[0].callsign}:{name}" for p in parts for name in p.phase_names],
         required_landing_times=merged["required_landing_times"], parts=parts, strategy="sequential")

@@ -174,7 +174,9 @@ class LandingOptimizer:
             tol=options.nlp_tol, max_iter=options.max_nlp_iterations, refine=options.refine,
             mesh_tol=options.mesh_tol, n_min=options.n_min, n_max=options.n_max,
             max_mesh_iterations=options.max_mesh_iterations, ipopt=dict(options.ipopt)))
-        log.debug("separation constraints on %d of %d phase pairs", count(self.pairs), count(all_pairs(self.layout)))
+        if len(self.layout.callsigns) > 1:
+            log.debug("separation constraints on %d of %d phase pairs", count(self.pairs),
+                      count(all_pairs(self.layout)))
 
     def _with_close_pairs(self, result: LandingResult, scenario: Scenario, deadline) -> LandingResult:
         """Re-solve (warm) with every unconstrained pair that came close added, until none does."""
@@ -239,8 +241,10 @@ class LandingOptimizer:
         return self._with_close_pairs(self._result(sol, wall, build_time, landing_times), scenario, deadline)
 
     def refine_at(self, previous: LandingResult, times: list[float], scenario: Scenario | None = None,
-                  deadline=None) -> LandingResult:
+                  deadline=None, callsigns: set[str] | None = None) -> LandingResult:
         """Re-solve with the mesh segments containing ``times`` split in two (warm start).
+
+        ``callsigns`` (the aircraft involved) is for the sequential optimizer; one NLP re-solves them all.
 
         Path constraints (separation, obstacles) hold only at the collocation points; where the
         independent verification finds the flown trajectory breaking one between them, more points
