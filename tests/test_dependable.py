@@ -53,6 +53,18 @@ def test_unreachable_landing_time_is_refused(thesis) -> None:
         check_request(sc)
 
 
+def test_aircraft_leaving_through_the_ceiling_is_refused(thesis) -> None:
+    """The main job's replan: after 16.5 s of straight flight A2 (climbing at 5 deg) is at the ceiling; even a
+    pushover at n_v = 0 takes it 0.0012 nm above: an impossible request, not solver noise."""
+    sc = edited(thesis, A2={"position": [-1.15, 5.9, 0.3]})
+    with pytest.raises(InfeasibleRequest, match=r"A2: at 0\.3000 nm climbing at 5\.0 deg it rises to 0\.3012 nm"):
+        check_request(sc)
+    check_request(edited(thesis, A2={"position": [-1.15, 5.9, 0.298]}))  # 0.0012 nm below: it can level off
+    sc = edited(thesis, A3={"position": [3.0, 5.5, 0.0002], "flight_path_angle_deg": -3.0})
+    with pytest.raises(InfeasibleRequest, match=r"A3: .* descending at 3\.0 deg .* below the airspace floor"):
+        check_request(sc)
+
+
 def test_landing_times_closer_than_the_spacing_are_refused(thesis) -> None:
     sc = edited(thesis, A2={"landing_time": 160.0})
     with pytest.raises(InfeasibleRequest, match=r"A1 and A2 land 5 s apart"):

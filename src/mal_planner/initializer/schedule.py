@@ -47,8 +47,9 @@ class LandingSchedule:
 def check_request(scenario: Scenario, gate_margin_nm: float = 0.0) -> None:
     """Raise :class:`InfeasibleRequest` (one line, naming the aircraft and the numbers) for impossible requests.
 
-    Checked: separation broken at the start, fixed landing times closer than the minimum spacing, fixed
-    landing times earlier than any trajectory can reach the runway, a gate hole no aircraft can pass.
+    Checked: separation broken at the start, an aircraft that leaves the airspace through its floor or ceiling
+    whatever it does, fixed landing times closer than the minimum spacing, fixed landing times earlier than
+    any trajectory can reach the runway, a gate hole no aircraft can pass.
     """
     sep = scenario.separation_nm
     for a, b in itertools.combinations(scenario.aircraft, 2):
@@ -56,6 +57,8 @@ def check_request(scenario: Scenario, gate_margin_nm: float = 0.0) -> None:
         if d < sep:
             raise InfeasibleRequest(f"{a.callsign} and {b.callsign} are {d:.3f} nm apart at the start "
                                     f"(minimum separation {sep:g} nm)")
+    for ac in scenario.aircraft:
+        _check_vertical_escape(scenario, ac)
     for gate in scenario.gates:
         axes = [a for a in range(3) if a != gate.axis]
         for (lo, hi), ax in zip(gate.bounds, axes, strict=True):
@@ -79,6 +82,39 @@ def check_request(scenario: Scenario, gate_margin_nm: float = 0.0) -> None:
         if tb - ta < scenario.landing_spacing_s - 1e-9:
             raise InfeasibleRequest(f"{a.callsign} and {b.callsign} land {tb - ta:g} s apart ({ta:g} s, {tb:g} s); "
                                     f"the minimum spacing is {scenario.landing_spacing_s:g} s")
+
+
+def _check_vertical_escape(scenario: Scenario, ac, step_s: float = 0.05, horizon_s: float = 120.0) -> None:
+    """Refuse an aircraft that crosses the airspace's ceiling (floor) even when it pulls its vertical load factor
+    to the limit at once: e.g. a radar track at the ceiling, still climbing. The flight-path angle rate
+    (g / V)(n_v - cos gamma) does not depend on n_h, so the extreme n_v is the best escape (RK4 on the model)."""
+    lo, hi = scenario.airspace[2]
+    gamma = float(ac.state0[3])
+    if gamma == 0.0:
+        return
+    n_v = ac.limits.n_v[0] if gamma > 0 else ac.limits.n_v[1]
+    control = np.array([0.0, n_v])
+    x = ac.state0.astype(float).copy()
+    extreme = x[2]
+    rhs = ac.dynamics.rhs
+    for _ in range(int(horizon_s / step_s)):
+        k1 = rhs(x, control)
+        k2 = rhs(x + step_s / 2 * k1, control)
+        k3 = rhs(x + step_s / 2 * k2, control)
+        k4 = rhs(x + step_s * k3, control)
+        x = x + step_s / 6 * (k1 + 2 * k2 + 2 * k3 + k4)
+        extreme = max(extreme, x[2]) if gamma > 0 else min(extreme, x[2])
+        if np.sign(x[3]) != np.sign(gamma):
+            break
+    deg = float(np.degrees(gamma))
+    if gamma > 0 and extreme > hi:
+        raise InfeasibleRequest(f"{ac.callsign}: at {ac.state0[2]:.4f} nm climbing at {deg:.1f} deg it rises to "
+                                f"{extreme:.4f} nm before it can level off (n_v = {n_v:g}): above the airspace "
+                                f"ceiling {hi:g} nm")
+    if gamma < 0 and extreme < lo:
+        raise InfeasibleRequest(f"{ac.callsign}: at {ac.state0[2]:.4f} nm descending at {-deg:.1f} deg it sinks to "
+                                f"{extreme:.4f} nm before it can level off (n_v = {n_v:g}): below the airspace "
+                                f"floor {lo:g} nm")
 
 
 def make_schedule(scenario: Scenario, earliest: Mapping[str, float], margin_s: float = DEFAULT_MARGIN_S

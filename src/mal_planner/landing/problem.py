@@ -323,6 +323,7 @@ def _phase(ctx: _Context, k: int, who: list[int], mesh: PhaseMesh, guess_span: t
         min_duration=1e-2,
         guess=phase_guess(who, aircraft, guesses, guess_span),
         mesh=mesh,
+        bound_controls_between=True,
     )
 
 

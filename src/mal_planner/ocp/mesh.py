@@ -71,6 +71,24 @@ def _estimate_matrices(n: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     return lx, lu, integration_matrix(m)
 
 
+@lru_cache(maxsize=256)
+def between_matrix(mesh: PhaseMesh) -> np.ndarray:
+    """(P, Nc): the per-segment control interpolants (degree N-1 through the collocation points) at the
+    midpoints between consecutive collocation points and at each segment's end."""
+    rows = []
+    offsets = np.concatenate([[0], np.cumsum(mesh.degrees)]).astype(int)
+    nc = int(offsets[-1])
+    for s, n in enumerate(mesh.degrees):
+        if n < 2:
+            continue
+        tau = lgr_nodes(n)
+        points = np.append(0.5 * (tau[:-1] + tau[1:]), [0.5 * (tau[-1] + 1.0), 1.0])
+        block = np.zeros((len(points), nc))
+        block[:, offsets[s]:offsets[s] + n] = lagrange_matrix(tau, points)
+        rows.append(block)
+    return np.vstack(rows) if rows else np.zeros((0, nc))
+
+
 Evaluator = Callable[[np.ndarray, np.ndarray, np.ndarray], np.ndarray]
 
 

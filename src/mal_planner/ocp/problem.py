@@ -104,6 +104,10 @@ class Phase:
     max_duration: float = INF
     guess: PhaseGuess | None = None
     mesh: PhaseMesh = field(default_factory=PhaseMesh.uniform)
+    bound_controls_between: bool = False
+    """Also keep the control interpolant of each segment within the control bounds halfway between its
+    collocation points and at the segment end (linear constraints): a solution whose controls ride a bound
+    otherwise overshoots it there, and that interpolant is what gets published and flown."""
     state_scale: Sequence[float] | str | None = None
     control_scale: Sequence[float] | str | None = None
 

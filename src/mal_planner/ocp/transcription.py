@@ -23,7 +23,7 @@ from typing import Any, Protocol
 import casadi as ca
 import numpy as np
 
-from .mesh import MeshLayout, layout
+from .mesh import MeshLayout, between_matrix, layout
 from .problem import Endpoint, Endpoints, Phase, PhaseGuess, PhaseMesh, Problem
 
 _log = logging.getLogger("mal_planner.ocp")
@@ -234,6 +234,12 @@ class Transcription:
                 g_parts.append(ca.vec(c_all))
                 lbg.append(np.tile(_bounds(ph.path_lb, npath, -np.inf), nk))
                 ubg.append(np.tile(_bounds(ph.path_ub, npath, np.inf), nk))
+            if ph.bound_controls_between and nu:
+                between = between_matrix(lay.mesh)
+                if between.shape[0]:
+                    g_parts.append(ca.vec(ca.mtimes(v, ca.sparsify(ca.DM(between.T)))))
+                    lbg.append(np.tile(b["u_lb"] / su, between.shape[0]))
+                    ubg.append(np.tile(b["u_ub"] / su, between.shape[0]))
             g_parts.append(tf - t0)
             lbg.append(np.array([ph.min_duration]))
             ubg.append(np.array([ph.max_duration]))
