@@ -481,8 +481,20 @@ def _separation(flown: dict[str, tuple[np.ndarray, np.ndarray]], scenario: Scena
         grid = np.union1d(ta[(ta >= t_start) & (ta <= t_end)], tb[(tb >= t_start) & (tb <= t_end)])
         names.append((a, b))
         grids.append(np.union1d(grid, [t_start, t_end]))
-    if not grids:
-        return []
+    pairs: list[PairCheck] = []
+    for k in range(0, len(names), PAIRS_PER_BATCH):  # batches bound the memory (20 aircraft: 600 -> 200 MB)
+        pairs += _closest_approaches(names[k:k + PAIRS_PER_BATCH], grids[k:k + PAIRS_PER_BATCH], flown, spare_of,
+                                     scenario, fail)
+    return pairs
+
+
+PAIRS_PER_BATCH = 16
+
+
+def _closest_approaches(names: list[tuple[str, str]], grids: list[np.ndarray],
+                        flown: dict[str, tuple[np.ndarray, np.ndarray]], spare_of: dict[str, float],
+                        scenario: Scenario, fail) -> list[PairCheck]:
+    """Closest approach of each pair on its grid, all pairs of the batch evaluated at once."""
     counts = np.array([len(g) for g in grids])
     first = np.cumsum(counts) - counts
     last = first + counts - 1
