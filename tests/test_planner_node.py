@@ -416,6 +416,28 @@ def test_plan_scenario_extrapolates_and_adds_unknown_aircraft() -> None:
     assert only_a1.scenario.aircraft[0].landing_time == pytest.approx(153.0)
 
 
+
+def test_plan_scenario_leaves_out_an_aircraft_that_cannot_stay_inside_the_airspace() -> None:
+    """The main job's replan: A2 (climbing at 5 deg) at the ceiling cannot stay inside; it is left out with the
+    reason, like an aircraft outside the airspace, and the others are planned."""
+
+    from mal_planner.ros.plan_scenario import build_plan_scenario
+    from mal_planner.ros.state_store import Track
+    from mal_planner.scenario import load_scenario
+
+    sc = load_scenario(SCENARIO)
+    tracks = {a.callsign: Track(a.callsign, 0.0, a.state0.copy(), a.speed) for a in sc.aircraft}
+    climbing = sc.aircraft_by_callsign("A2").state0.copy()
+    climbing[2] = 0.305  # radar noise above the ceiling, within the node's tolerance: clipped onto it
+    tracks["A2"] = Track("A2", 0.0, climbing, 0.04)
+    inputs = build_plan_scenario(sc, tracks, 0.0, landing_shift=0.0)
+    assert [a.callsign for a in inputs.scenario.aircraft] == ["A1", "A3"]
+    assert inputs.left_out["A2"].startswith("leaving the airspace (at 0.3000 nm climbing at 5.0 deg")
+    climbing[2] = 0.29  # 0.01 nm below: it can level off in time
+    tracks["A2"] = Track("A2", 0.0, climbing, 0.04)
+    assert "A2" not in build_plan_scenario(sc, tracks, 0.0, landing_shift=0.0).left_out
+
+
 if __name__ == "__main__":
     sys.exit(pytest.main([__file__, "-v"]))
 

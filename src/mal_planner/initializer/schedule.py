@@ -58,7 +58,9 @@ def check_request(scenario: Scenario, gate_margin_nm: float = 0.0) -> None:
             raise InfeasibleRequest(f"{a.callsign} and {b.callsign} are {d:.3f} nm apart at the start "
                                     f"(minimum separation {sep:g} nm)")
     for ac in scenario.aircraft:
-        _check_vertical_escape(scenario, ac)
+        reason = vertical_escape_problem(scenario, ac)
+        if reason is not None:
+            raise InfeasibleRequest(reason)
     for gate in scenario.gates:
         axes = [a for a in range(3) if a != gate.axis]
         for (lo, hi), ax in zip(gate.bounds, axes, strict=True):
@@ -84,14 +86,14 @@ def check_request(scenario: Scenario, gate_margin_nm: float = 0.0) -> None:
                                     f"the minimum spacing is {scenario.landing_spacing_s:g} s")
 
 
-def _check_vertical_escape(scenario: Scenario, ac, step_s: float = 0.05, horizon_s: float = 120.0) -> None:
-    """Refuse an aircraft that crosses the airspace's ceiling (floor) even when it pulls its vertical load factor
-    to the limit at once: e.g. a radar track at the ceiling, still climbing. The flight-path angle rate
+def vertical_escape_problem(scenario: Scenario, ac, step_s: float = 0.05, horizon_s: float = 120.0) -> str | None:
+    """Why ``ac`` crosses the airspace's ceiling (floor) even when it pulls its vertical load factor to the
+    limit at once (e.g. a radar track at the ceiling, still climbing), or None. The flight-path angle rate
     (g / V)(n_v - cos gamma) does not depend on n_h, so the extreme n_v is the best escape (RK4 on the model)."""
     lo, hi = scenario.airspace[2]
     gamma = float(ac.state0[3])
     if gamma == 0.0:
-        return
+        return None
     n_v = ac.limits.n_v[0] if gamma > 0 else ac.limits.n_v[1]
     control = np.array([0.0, n_v])
     x = ac.state0.astype(float).copy()
@@ -108,13 +110,12 @@ def _check_vertical_escape(scenario: Scenario, ac, step_s: float = 0.05, horizon
             break
     deg = float(np.degrees(gamma))
     if gamma > 0 and extreme > hi:
-        raise InfeasibleRequest(f"{ac.callsign}: at {ac.state0[2]:.4f} nm climbing at {deg:.1f} deg it rises to "
-                                f"{extreme:.4f} nm before it can level off (n_v = {n_v:g}): above the airspace "
-                                f"ceiling {hi:g} nm")
+        return (f"{ac.callsign}: at {ac.state0[2]:.4f} nm climbing at {deg:.1f} deg it rises to {extreme:.4f} nm "
+                f"before it can level off (n_v = {n_v:g}): above the airspace ceiling {hi:g} nm")
     if gamma < 0 and extreme < lo:
-        raise InfeasibleRequest(f"{ac.callsign}: at {ac.state0[2]:.4f} nm descending at {-deg:.1f} deg it sinks to "
-                                f"{extreme:.4f} nm before it can level off (n_v = {n_v:g}): below the airspace "
-                                f"floor {lo:g} nm")
+        return (f"{ac.callsign}: at {ac.state0[2]:.4f} nm descending at {-deg:.1f} deg it sinks to {extreme:.4f} nm "
+                f"before it can level off (n_v = {n_v:g}): below the airspace floor {lo:g} nm")
+    return None
 
 
 def make_schedule(scenario: Scenario, earliest: Mapping[str, float], margin_s: float = DEFAULT_MARGIN_S

@@ -10,6 +10,7 @@ from typing import Any
 import numpy as np
 
 from mal_planner.dynamics import make_dynamics
+from mal_planner.initializer.schedule import vertical_escape_problem
 from mal_planner.obstacles import Superquadric
 from mal_planner.ros.state_store import Track
 from mal_planner.scenario import Aircraft, Scenario
@@ -94,7 +95,12 @@ def build_plan_scenario(base: Scenario, tracks: Mapping[str, Track], plan_start:
             aircraft.append(Aircraft(cs, state, dyn, default_limits, tr.wake, None))
             continue
         landing = None if known.landing_time is None else known.landing_time - landing_shift
-        aircraft.append(Aircraft(cs, state, known.dynamics, known.limits, known.wake_category or tr.wake, landing))
+        candidate = Aircraft(cs, state, known.dynamics, known.limits, known.wake_category or tr.wake, landing)
+        leaving = vertical_escape_problem(base, candidate)
+        if leaving is not None:  # like an aircraft outside: no plan can keep it inside the airspace
+            left_out[cs] = f"leaving the airspace ({leaving.split(': ', 1)[1]})"
+            continue
+        aircraft.append(candidate)
     aircraft = _feasible_landing_times(aircraft, base.runway_state[:3], base.landing_spacing_s,
                                        base.max_landing_spacing_s)
     return PlanInputs(replace(base, aircraft=tuple(aircraft)), plan_start, left_out)
