@@ -92,6 +92,15 @@ class DynamicsModel:
         rates = self.rhs(state, control)
         return rates[3], rates[4]
 
+    def rk4_step(self, state: np.ndarray, control: np.ndarray, h: float) -> np.ndarray:
+        """One classical Runge-Kutta step of ``h`` seconds under a constant ``control`` (simulation and
+        feasibility checks; the verification integrates with its own, independent scheme)."""
+        k1 = self.rhs(state, control)
+        k2 = self.rhs(state + h / 2 * k1, control)
+        k3 = self.rhs(state + h / 2 * k2, control)
+        k4 = self.rhs(state + h * k3, control)
+        return state + h / 6 * (k1 + 2 * k2 + 2 * k3 + k4)
+
     def level_flight_control(self, gamma: Any = 0.0) -> np.ndarray:
         """Controls that hold gamma and heading constant (n_h = 0, n_v = cos gamma)."""
         return np.array([0.0, np.cos(gamma)])

@@ -98,13 +98,8 @@ def vertical_escape_problem(scenario: Scenario, ac, step_s: float = 0.05, horizo
     control = np.array([0.0, n_v])
     x = ac.state0.astype(float).copy()
     extreme = x[2]
-    rhs = ac.dynamics.rhs
     for _ in range(int(horizon_s / step_s)):
-        k1 = rhs(x, control)
-        k2 = rhs(x + step_s / 2 * k1, control)
-        k3 = rhs(x + step_s / 2 * k2, control)
-        k4 = rhs(x + step_s * k3, control)
-        x = x + step_s / 6 * (k1 + 2 * k2 + 2 * k3 + k4)
+        x = ac.dynamics.rk4_step(x, control, step_s)
         extreme = max(extreme, x[2]) if gamma > 0 else min(extreme, x[2])
         if np.sign(x[3]) != np.sign(gamma):
             break

@@ -27,19 +27,17 @@ from mal_planner.landing.pairs import PairScreen
 from mal_planner.landing.problem import Intruder, phase_guesses
 from mal_planner.landing.solve import LandingOptimizer, LandingOptions, LandingResult, layout_for, split_segments
 from mal_planner.scenario import Scenario
-from mal_planner.trajectory import Trajectory
 
 log = logging.getLogger("mal_planner.optimizer")
 
 
-def closest_approach(a: Trajectory, b_t: np.ndarray, b_pos: np.ndarray) -> float:
-    """Smallest distance (nm) between trajectory ``a`` and samples ``b`` while both fly (on a's samples)."""
-    t_end = min(a.t[-1], b_t[-1])
-    keep = a.t <= t_end
+def closest_approach(a_t: np.ndarray, a_pos: np.ndarray, b_t: np.ndarray, b_pos: np.ndarray) -> float:
+    """Smallest distance (nm) between two sampled paths while both fly, on a's sample times."""
+    keep = a_t <= min(a_t[-1], b_t[-1])
     if not keep.any():
         return float("inf")
-    other = np.column_stack([np.interp(a.t[keep], b_t, b_pos[:, k]) for k in range(3)])
-    return float(np.linalg.norm(a.positions[keep] - other, axis=1).min())
+    other = np.column_stack([np.interp(a_t[keep], b_t, b_pos[:, k]) for k in range(3)])
+    return float(np.linalg.norm(a_pos[keep] - other, axis=1).min())
 
 
 class SequentialOptimizer:
@@ -144,8 +142,9 @@ class SequentialOptimizer:
                                    [guess.landing_time])
                 if not part.success:
                     break
-                close = [k for k, (_, t, pos) in enumerate(flown)
-                         if k not in near and closest_approach(part.trajectories[0], t, pos) < sep + screen.recheck_nm]
+                mine = part.trajectories[0]
+                close = [k for k, (_, t, pos) in enumerate(flown) if k not in near
+                         and closest_approach(mine.t, mine.positions, t, pos) < sep + screen.recheck_nm]
                 if not close:
                     break
                 log.info("%s: %s came close; re-solving against them too", guess.callsign,
@@ -165,12 +164,9 @@ class SequentialOptimizer:
 
 
 def _guess_distance(guess: AircraftGuess, t: np.ndarray, pos: np.ndarray) -> float:
-    """Smallest distance between a guess and a planned path while both fly (time-synchronous, 1 s steps)."""
-    t_end = min(guess.landing_time, t[-1])
-    ts = np.arange(0.0, t_end + 1.0, 1.0)
-    a = guess.state_at(ts)[:, :3]
-    b = np.column_stack([np.interp(ts, t, pos[:, k]) for k in range(3)])
-    return float(np.linalg.norm(a - b, axis=1).min()) if len(ts) else float("inf")
+    """Smallest distance between a guess (sampled every second) and a planned path while both fly."""
+    ts = np.arange(0.0, guess.landing_time + 1.0, 1.0)
+    return closest_approach(ts, guess.state_at(ts)[:, :3], t, pos)
 
 
 def _retimed(guess: AircraftGuess, landing_time: float) -> AircraftGuess:

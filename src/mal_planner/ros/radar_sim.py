@@ -36,11 +36,7 @@ def propagate_level(dynamics: DynamicsModel, state: np.ndarray, dt: float, max_s
     n = max(1, int(np.ceil(dt / max_step)))
     h = dt / n
     for _ in range(n):
-        k1 = dynamics.rhs(x, u)
-        k2 = dynamics.rhs(x + h / 2 * k1, u)
-        k3 = dynamics.rhs(x + h / 2 * k2, u)
-        k4 = dynamics.rhs(x + h * k3, u)
-        x = x + h / 6 * (k1 + 2 * k2 + 2 * k3 + k4)
+        x = dynamics.rk4_step(x, u, h)
     return x
 
 
