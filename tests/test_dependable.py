@@ -16,8 +16,12 @@ from mal_planner.errors import InfeasibleRequest
 from mal_planner.initializer.schedule import check_request, make_schedule
 from mal_planner.initializer.timing import earliest_landing_times, reachable_lower_bound
 from mal_planner.landing import LandingOptions
+from mal_planner.landing.guess import straight_line_guess
+from mal_planner.landing.solve import LandingOptimizer, published_times
+from mal_planner.ocp import PhaseMesh, PhaseSolution
+from mal_planner.ocp.mesh import layout as mesh_layout
 from mal_planner.pipeline import Planner, PlanOptions
-from mal_planner.scenario import load_scenario, parse_scenario
+from mal_planner.scenario import load_scenario, parse_scenario, scenario_from_text
 from mal_planner.verification import verify
 
 COARSE = LandingOptions(mesh_tol=1e-4)
@@ -216,3 +220,83 @@ def test_threaded_ompl_planners_do_not_deadlock(planner: str) -> None:
             "np.random.default_rng(0)); print(len(p))")
     proc = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=60)
     assert proc.returncode == 0 and int(proc.stdout.strip()) >= 2, proc.stderr
+
+
+# Three regressions from the 200-scenario campaign (benchmarks/dependable_campaign.sh), each reduced to what
+# made it fail.
+def generated(airspace: str, body: str) -> str:
+    """A scenario file as mal-traffic writes them (runway at the origin heading -90 deg), in short form."""
+    return f"""
+name: generated
+gravity: 0.0052952
+runway: {{position: [0.0, 0.0, 0.0], flight_path_angle_deg: 0.0, heading_deg: -90.0}}
+airspace: {airspace}
+separation: {{distance_nm: 0.25, landing_spacing_s: 15.0, max_landing_spacing_s: 30.0}}
+limits: {{bank_angle_deg: 45.0, n_h: [-2.0, 2.0], n_v: [0.0, 2.0]}}
+{body}"""
+
+
+WESTBOUND = generated("{x: [-5.5, 5.5], y: [0.0, 8.0], z: [0.0, 0.4]}", """aircraft:
+  - {callsign: T02, position: [2.8578, 3.5034, 0.1521], flight_path_angle_deg: 0.0, heading_deg: 177.0,
+     speed: 0.04345, landing_time: 119.1}
+""")
+
+
+def test_a_turn_across_180_deg_is_not_a_full_circle_more() -> None:
+    """Heading 177 deg, runway heading -90 deg, a left turn of 93 deg: the guess started at -183 deg, so the NLP
+    asked for a right turn of 267 deg and the fixed landing time was infeasible (campaign traffic-0096)."""
+    sc = scenario_from_text(WESTBOUND)
+    guess = straight_line_guess(sc, ["T02"], [119.1])[0]
+    # The guess starts at the aircraft's heading (smoothed), not a full circle away from it.
+    assert abs(guess.states[0, 4] - math.radians(177.0)) < math.pi / 2
+    assert abs(guess.states[-1, 4] - guess.states[0, 4]) < math.pi
+    optimizer = LandingOptimizer(sc, [guess], COARSE)
+    # A heading given a full circle away (e.g. a radar heading that wrapped) is the same parameter.
+    turned = sc.with_initial_states({"T02": sc.aircraft[0].state0 - np.array([0, 0, 0, 0, 2 * math.pi])})
+    assert np.array_equal(optimizer.problem.params(turned, [119.1]), optimizer.problem.params(sc, [119.1]))
+    result = Planner(PlanOptions(seed=0, landing=COARSE)).plan(sc, reuse=False)
+    assert result.verified, result.failure
+    assert result.landing_times()["T02"] == pytest.approx(119.1, abs=1e-6)
+
+
+CORNER = generated("{x: [-4.0, 4.0], y: [0.0, 6.5], z: [0.0, 0.3]}", """aircraft:
+  - {callsign: T01, position: [0.1868, 5.0831, 0.2258], flight_path_angle_deg: 0.0, heading_deg: -131.3,
+     speed: 0.04141, landing_time: 141.4}
+  - {callsign: T02, position: [-2.9382, 5.016, 0.2336], flight_path_angle_deg: 0.0, heading_deg: -3.3,
+     speed: 0.03783, landing_time: 162.8}
+obstacles:
+  - {type: superquadric, name: zone-1, center: [-1.039, 1.375, 0.15], semi_axes: [0.369, 0.416, 0.3], p: 50}
+  - {type: superquadric, name: zone-2, center: [1.111, 3.617, 0.15], semi_axes: [0.44, 0.799, 0.3], p: 50}
+""")
+
+
+def test_a_cut_no_fly_zone_corner_is_refined_until_verified() -> None:
+    """A path hugging a box-like zone's corner cut it by 0.04 nm between collocation points 1.1 s apart, and
+    three rounds of halving the segment did not fix it (campaign traffic-0128); a short segment at the cut
+    does."""
+    sc = scenario_from_text(CORNER)
+    result = Planner(PlanOptions(seed=0)).plan(sc, reuse=False)
+    assert result.verified, result.failure
+
+
+def test_published_controls_follow_a_sharply_bending_control() -> None:
+    """Linear between the published samples, the controls stay within control_tol of the solution's control
+    interpolant; a 0.25 s grid alone misses a sharp bend by far more (campaign traffic-0083: a 0.0035 nm drift
+    over 290 s that put the flown path below the floor before landing)."""
+    mesh = PhaseMesh((0.0, 1.0), (10,))
+    lay = mesh_layout(mesh)
+    t = 20.0 * (lay.tau + 1.0) / 2.0
+    u = np.column_stack([1.0 + 0.3 * np.exp(-t), 0.9 + 0.01 * t])  # bends hard in the first seconds only
+    phase = PhaseSolution("p", 0.0, 20.0, t, np.zeros((len(t), 5)), u, 0.0, lay)
+
+    def worst_midpoint_miss(times: np.ndarray) -> float:
+        mid = 0.5 * (times[:-1] + times[1:])
+        uu, um = phase.interpolate(times)[1], phase.interpolate(mid)[1]
+        return float(np.max(np.abs(um - 0.5 * (uu[:-1] + uu[1:]))))
+
+    plain = published_times(phase, slice(0, 2), 0.25, math.inf)
+    dense = published_times(phase, slice(0, 2), 0.25, 1e-5)
+    assert worst_midpoint_miss(plain) > 1e-4
+    assert worst_midpoint_miss(dense) <= 1e-5
+    assert np.all(np.isin(plain, dense)) and np.all(np.diff(dense) > 0)
+    assert len(dense) < 4 * len(plain)  # samples only where the controls bend

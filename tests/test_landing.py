@@ -54,8 +54,16 @@ def test_layout_orders_events_and_drops_passed_gates() -> None:
 
 def test_split_segments() -> None:
     mesh = PhaseMesh.uniform(4, 5)
-    out = split_segments(mesh, [0.1, 0.12, 0.9])
-    assert out.n_segments == 6 and out.breaks[1] == pytest.approx(0.125) and out.degrees == (5,) * 6
+    # A short segment around the times of each segment that has some (1 s on each side of a 100 s phase) ...
+    out = split_segments(mesh, 0.0, 100.0, [10.0, 12.0, 90.0])
+    assert out.breaks == pytest.approx((0.0, 0.09, 0.13, 0.25, 0.5, 0.75, 0.89, 0.91, 1.0))
+    assert out.degrees == (5,) * 8
+    # ... that ends with the segment when the times come within half the pad of its end ...
+    out = split_segments(mesh, 0.0, 100.0, [22.0, 24.8])
+    assert out.breaks == pytest.approx((0.0, 0.21, 0.25, 0.5, 0.75, 1.0))
+    # ... and a segment the times nearly cover is halved; times outside the phase split nothing.
+    out = split_segments(mesh, 0.0, 100.0, [1.0, 24.0, 150.0])
+    assert out.breaks == pytest.approx((0.0, 0.125, 0.25, 0.5, 0.75, 1.0)) and out.degrees == (5,) * 5
 
 
 def test_thesis_reproduction_is_verified(thesis_result) -> None:

@@ -72,8 +72,12 @@ def _make_guess(aircraft: Aircraft, t: np.ndarray, states: np.ndarray, gate: Gat
     states = states.copy()
     states[:, 4] = np.unwrap(states[:, 4])
     # The first sample carries the aircraft's actual attitude, then blends into the path's angles.
+    # The path's headings are shifted by 2 pi k to start within half a turn of the aircraft's own heading
+    # (not a full circle away from it, which would guess a turn of a full circle more).
+    heading0 = float(aircraft.state0[4])
+    first = states[1, 4] + np.remainder(heading0 - states[1, 4] + np.pi, 2 * np.pi) - np.pi
+    states[1:, 4] += heading0 - first
     states[0, 3:] = aircraft.state0[3:]
-    states[0, 4] = states[1, 4] + np.remainder(aircraft.state0[4] - states[1, 4] + np.pi, 2 * np.pi) - np.pi
     dt = float(np.median(np.diff(t))) if len(t) > 1 else 1.0
     states = _smooth_angles(states, max(1, int(round(smooth_s / dt))))
     return AircraftGuess(aircraft.callsign, t, states, landing_time, _crossing_time(gate, t, states[:, :3]))

@@ -72,10 +72,24 @@ class LandingProblem:
     layout: PhaseLayout
     n_aircraft: int
     fixed_landing_times: bool
+    initial_headings: tuple[float, ...] = ()
+    """The guesses' initial headings (landing order) the NLP was built around (its gate and runway headings
+    are the representatives + 2 pi k nearest the guesses')."""
 
     def params(self, scenario: Scenario, landing_times: list[float]) -> np.ndarray:
-        """Parameter vector: initial states (landing order) then landing times."""
-        states = [scenario.aircraft_by_callsign(cs).state0 for cs in self.layout.callsigns]
+        """Parameter vector: initial states (landing order) then landing times.
+
+        Each initial heading is taken + 2 pi k nearest the heading the NLP was built around: a heading given
+        as 177 deg against a build for -183 deg (or a radar heading that wrapped from 179 to -179 deg between
+        replans) would otherwise ask for a turn of a full circle more and make a fixed landing time
+        infeasible (campaign traffic-0096).
+        """
+        states = []
+        for k, cs in enumerate(self.layout.callsigns):
+            state = scenario.aircraft_by_callsign(cs).state0.astype(float)
+            if k < len(self.initial_headings):
+                state[4] = _wrap_near(float(state[4]), self.initial_headings[k])
+            states.append(state)
         return np.concatenate([np.concatenate(states), np.asarray(landing_times, float)])
 
 
@@ -159,7 +173,7 @@ def build_landing_problem(scenario: Scenario, layout: PhaseLayout, guesses: list
             cs = layout.callsigns[i]
             linked += [f"{cs}.{s}" for s in STATE_NAMES]
         problem.link(phases[k].name, phases[k + 1].name, linked, time=True)
-    return LandingProblem(problem, layout, n, fixed_landing_times)
+    return LandingProblem(problem, layout, n, fixed_landing_times, tuple(float(g.states[0, 4]) for g in guesses))
 
 
 MIN_DEGREE = 3

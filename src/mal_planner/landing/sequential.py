@@ -77,12 +77,8 @@ class SequentialOptimizer:
         guesses = [_guess_from(part) for part in previous.parts]
         meshes = []
         for part in previous.parts:
-            split = []
-            for phase, mesh in zip(part.solution.phases, part.solution.meshes, strict=True):
-                duration = phase.tf - phase.t0
-                fracs = [(t - phase.t0) / duration for t in times if phase.t0 <= t <= phase.tf and duration > 0]
-                split.append(split_segments(mesh, fracs))
-            meshes.append(split)
+            meshes.append([split_segments(mesh, phase.t0, phase.tf, times)
+                           for phase, mesh in zip(part.solution.phases, part.solution.meshes, strict=True)])
         result = self._solve_all(scenario, guesses, list(previous.parts), meshes, deadline, only=callsigns)
         result.solve_time += previous.solve_time
         result.build_time += previous.build_time
