@@ -325,7 +325,8 @@ def published_times(phase: PhaseSolution, controls: slice, dt: float, control_to
     """Sample times of one aircraft in one phase: the global grid ``k * dt``, the phase's ends and nodes, and
     wherever the controls, taken as linear between samples (as a follower flies them), would miss the
     solution's control interpolant by more than ``control_tol`` at an interval's midpoint, its midpoint
-    (up to ``max_rounds`` halvings, i.e. down to dt / 256).
+    (at most ``max_rounds`` halvings of an interval: where the interpolants of two mesh segments differ at
+    their common break, the last interval before it stays 1/256 of its length).
 
     Where the optimal controls bend sharply (the first seconds of a plan, a turn's entry) a 0.25 s grid
     flown linearly drifted 0.0035 nm from the plan over 290 s and dipped below the floor before landing
