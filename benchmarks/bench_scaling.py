@@ -526,6 +526,11 @@ def _git(*args: str) -> str:
         return "?"
 
 
+def _section(title: str, intro: str, columns: list[str]) -> list[str]:
+    """The lines opening a results section: its heading, an explanatory paragraph, a table's header."""
+    return [f"## {title}", "", intro, "", f"| {' | '.join(columns)} |", "|" + "---|" * len(columns)]
+
+
 def write_markdown(path: Path, meta: dict[str, Any], rows: list[dict[str, Any]], sizes: list[int],
                    fit: tuple[float, float] | None, fit_sizes: list[int]) -> None:
     a = meta["args"]
@@ -614,16 +619,17 @@ def write_markdown(path: Path, meta: dict[str, Any], rows: list[dict[str, Any]],
 
     replans = [r for r in rows if r["kind"] == "replan"]
     if replans:
-        lines += ["## Warm replans as the node makes them", "",
-                  f"One `Planner` in a child process with the node's default plan options: a cold plan (time limit "
-                  f"{a['time_limit']:g} s), then every {a['replan_dt']:g} s the aircraft are where the followed plan "
-                  "puts them, the node's `build_plan_scenario` turns those radar tracks into the new scenario, "
-                  "and `planner.plan(new, start_time=t)` replans (node time limit "
-                  f"{_f(replans[0].get('node_time_limit_s'), 0)} s). Replan time = building the scenario + the "
-                  "plan, like the node's \"planned in\". *warm*: the replan started warm (no initializer) and kept "
-                  "the warm solve (no fallback).", "",
-                  "| N | cold plan s | replans s | median replan s | optimizer s | verification s | warm | verified | "
-                  "IPOPT it | peak RSS MB |", "|---|---|---|---|---|---|---|---|---|---|"]
+        lines += _section(
+            "Warm replans as the node makes them",
+            "One `Planner` in a child process with the node's default plan options: a cold plan (time limit "
+            f"{a['time_limit']:g} s), then every {a['replan_dt']:g} s the aircraft are where the followed plan "
+            "puts them, the node's `build_plan_scenario` turns those radar tracks into the new scenario, "
+            "and `planner.plan(new, start_time=t)` replans (node time limit "
+            f"{_f(replans[0].get('node_time_limit_s'), 0)} s). Replan time = building the scenario + the "
+            "plan, like the node's \"planned in\". *warm*: the replan started warm (no initializer) and kept "
+            "the warm solve (no fallback).",
+            ["N", "cold plan s", "replans s", "median replan s", "optimizer s", "verification s", "warm", "verified",
+             "IPOPT it", "peak RSS MB"])
         for r in replans:
             reps = r.get("replans") or []
             cold = r.get("cold") or {}
@@ -642,12 +648,13 @@ def write_markdown(path: Path, meta: dict[str, Any], rows: list[dict[str, Any]],
 
     sims = [r for r in rows if r["kind"] == "node_sim"]
     if sims:
-        lines += ["## The node under the radar simulator", "",
-                  f"`mal-launch --simulate --duration {a['node_sim_duration']:g}` with `replan_period_s` = "
-                  f"{a['replan_dt']:g} (the node replans that long after the previous plan ended) and no figures; "
-                  "the times are the node's own, from `logs/planner.log` (\"plan #k: ... planned in X s\").", "",
-                  "| scenario | N | plan | reason | warm | planned in s | initializer s | optimizer s | "
-                  "verification s | verified |", "|---|---|---|---|---|---|---|---|---|---|"]
+        lines += _section(
+            "The node under the radar simulator",
+            f"`mal-launch --simulate --duration {a['node_sim_duration']:g}` with `replan_period_s` = "
+            f"{a['replan_dt']:g} (the node replans that long after the previous plan ended) and no figures; "
+            "the times are the node's own, from `logs/planner.log` (\"plan #k: ... planned in X s\").",
+            ["scenario", "N", "plan", "reason", "warm", "planned in s", "initializer s", "optimizer s",
+             "verification s", "verified"])
         for r in sims:
             if not r["plans"]:
                 lines.append(f"| {r['label']} | {r['n']} | – | {r.get('failure')} | | | | | | |")
