@@ -12,6 +12,7 @@ from mal_planner.landing import LandingOptions, plan_layout
 from mal_planner.landing.solve import LandingOptimizer, make_guesses, split_segments
 from mal_planner.ocp import PhaseMesh
 from mal_planner.pipeline import Planner, PlanOptions, plan
+from mal_planner.scales import Scales
 from mal_planner.scenario import load_scenario
 
 # The default settings (mesh tolerance 1e-6): coarser meshes solve but do not pass the verification.
@@ -55,14 +56,14 @@ def test_layout_orders_events_and_drops_passed_gates() -> None:
 def test_split_segments() -> None:
     mesh = PhaseMesh.uniform(4, 5)
     # A short segment around the times of each segment that has some (1 s on each side of a 100 s phase) ...
-    out = split_segments(mesh, 0.0, 100.0, [10.0, 12.0, 90.0])
+    out = split_segments(mesh, 0.0, 100.0, [10.0, 12.0, 90.0], 1.0)
     assert out.breaks == pytest.approx((0.0, 0.09, 0.13, 0.25, 0.5, 0.75, 0.89, 0.91, 1.0))
     assert out.degrees == (5,) * 8
     # ... that ends with the segment when the times come within half the pad of its end ...
-    out = split_segments(mesh, 0.0, 100.0, [22.0, 24.8])
+    out = split_segments(mesh, 0.0, 100.0, [22.0, 24.8], 1.0)
     assert out.breaks == pytest.approx((0.0, 0.21, 0.25, 0.5, 0.75, 1.0))
     # ... and a segment the times nearly cover is halved; times outside the phase split nothing.
-    out = split_segments(mesh, 0.0, 100.0, [1.0, 24.0, 150.0])
+    out = split_segments(mesh, 0.0, 100.0, [1.0, 24.0, 150.0], 1.0)
     assert out.breaks == pytest.approx((0.0, 0.125, 0.25, 0.5, 0.75, 1.0)) and out.degrees == (5,) * 5
 
 
@@ -87,7 +88,7 @@ def test_solution_satisfies_dynamics_bank_and_gate(thesis, thesis_result) -> Non
         ac = sc.aircraft_by_callsign(tr.callsign)
         np.testing.assert_allclose(tr.states[0], ac.state0, atol=1e-6)
         # The threshold is crossed inside the airspace margin (1e-3 nm above the floor, inside its edge).
-        margin = COARSE.margins.airspace_nm
+        margin = COARSE.margins.in_nm(Scales.of(sc)).airspace_nm
         np.testing.assert_allclose(tr.states[-1, :3], sc.runway_state[:3] + [0.0, margin, margin], atol=1e-6)
         # The published controls keep the limits exactly (no clipping after the solve, no tolerance).
         bank = np.degrees(np.arctan2(tr.controls[:, 0], tr.controls[:, 1]))

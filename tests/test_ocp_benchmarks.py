@@ -178,3 +178,34 @@ def test_nlp_failure_is_reported() -> None:
     sol = OCPSolver(prob, OCPOptions(max_iter=200)).solve()
     assert not sol.success and not sol.nlp_success
     assert len(sol.mesh_history) == 1 and not sol.mesh_history[0].nlp_success
+
+
+def test_scaled_units_reach_ipopt_with_the_same_numbers() -> None:
+    """Bryson-Denham posed in other units (lengths x50, times x100) with the matching scales is the same NLP:
+    the same IPOPT iterations and mesh, the solution in the new units. Unscaled, IPOPT sees other numbers."""
+    mesh = PhaseMesh.uniform(2, 5)
+
+    def problem(length: float, time_: float, scaled: bool) -> Problem:
+        ell, speed, accel = length / 9.0, length / time_, length / time_**2
+        ph = _double_integrator(
+            "bd", mesh=mesh,
+            state_lb=[-10.0 * length, -10.0 * speed], state_ub=[10.0 * length, 10.0 * speed],
+            initial_state_lb=[0.0, speed], initial_state_ub=[0.0, speed],
+            final_state_lb=[0.0, -speed], final_state_ub=[0.0, -speed],
+            t0_bounds=(0.0, 0.0), tf_bounds=(time_, time_),
+            guess=PhaseGuess(t=[0.0, time_], x=[[0.0, speed], [0.0, -speed]], u=[[0.0], [0.0]]),
+            path=lambda x, u, t, p: x[0] - ell, path_ub=0.0,
+            **({"state_scale": [length, speed], "control_scale": [accel], "time_scale": time_,
+                "path_scale": length} if scaled else {}),
+        )
+        return Problem(phases=[ph], objective_scale=length**2 / time_**3 if scaled else 1.0)
+
+    length, time_ = 50.0, 100.0
+    reference = OCPSolver(problem(1.0, 1.0, False), OCPOptions(refine=False)).solve()
+    scaled = OCPSolver(problem(length, time_, True), OCPOptions(refine=False)).solve()
+    raw = OCPSolver(problem(length, time_, False), OCPOptions(refine=False)).solve()
+    assert reference.success and scaled.success
+    assert scaled.iterations == reference.iterations and raw.iterations != reference.iterations
+    assert scaled.objective == pytest.approx(reference.objective * length**2 / time_**3, rel=1e-9)
+    assert scaled.phases[0].t == pytest.approx(reference.phases[0].t * time_, rel=1e-9)
+    assert scaled.phases[0].x[:, 0] == pytest.approx(reference.phases[0].x[:, 0] * length, rel=1e-6, abs=1e-9)

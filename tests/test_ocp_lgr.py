@@ -81,8 +81,8 @@ def test_error_estimate_zero_for_polynomial_state_and_refine_rules() -> None:
     m = refine(PhaseMesh.uniform(2, 4), np.array([1e-3, 1e-9]), 1e-6, 3, 10)
     assert m.degrees == (9, 4)  # P = ceil(log(1e3)/log(4)) = 5
     m = refine(PhaseMesh.uniform(2, 8), np.array([1e-1, 1e-9]), 1e-6, 3, 10)
-    # P = ceil(log(1e5)/log(8)) = 6 -> 14 > 10: split into ceil(14/3) = 5 segments of degree 3.
-    assert m.degrees == (3, 3, 3, 3, 3, 8) and np.allclose(m.breaks[:6], np.linspace(0, 0.5, 6))
+    # P = ceil(log(1e5)/log(8)) = 6 -> 14 > 10: split into two halves of degree 8 (not five of degree 3).
+    assert m.degrees == (8, 8, 8) and np.allclose(m.breaks, [0.0, 0.25, 0.5, 1.0])
 
 
 def test_interpolation_at_a_mesh_break_gives_the_node_value() -> None:

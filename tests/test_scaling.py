@@ -14,6 +14,7 @@ from mal_planner.landing.pairs import PairScreen, all_pairs, close_unconstrained
 from mal_planner.landing.problem import _scaled_mesh
 from mal_planner.ocp import PhaseMesh
 from mal_planner.pipeline import Planner, PlanOptions
+from mal_planner.scales import Scales
 from mal_planner.scenario import load_scenario
 
 
@@ -30,7 +31,8 @@ def test_screening_keeps_only_the_pairs_that_come_close() -> None:
     guesses = [_straight("A", (0.0, 0.0), (2.0, 0.0), 100.0), _straight("B", (2.0, 2.0), (2.0, 0.1), 101.0),
                _straight("C", (0.0, 5.0), (0.0, 8.0), 102.0)]
     layout = plan_layout(["A", "B", "C"], [g.landing_time for g in guesses], None)
-    pairs = screen_pairs(layout, guesses, 0.25, PairScreen(near_nm=0.5, slack_s=5.0))
+    # In units of a turn radius of 1 nm and a turn time of 1 s: within 0.5 nm, 5 s around each phase.
+    pairs = screen_pairs(layout, guesses, Scales(1.0, 1.0, 0.25), PairScreen(near=0.5, slack=5.0))
     assert count(all_pairs(layout)) == 4  # phase 1: AB AC BC; phase 2: BC
     assert pairs[0] == {(0, 1)} and pairs[1] == set() and pairs[2] == set()
     # The same check on "solved" samples: an unconstrained pair that came close is reported.
@@ -42,7 +44,7 @@ def test_screening_keeps_only_the_pairs_that_come_close() -> None:
 
 def test_short_phases_get_small_meshes() -> None:
     mesh = PhaseMesh.uniform(4, 6)
-    assert _scaled_mesh(mesh, 200.0, 20.0).degrees == (6,) * 4
+    assert _scaled_mesh(mesh, 200.0, 20.0).degrees == (6,) * 10  # one per 20 s, however long the phase
     assert _scaled_mesh(mesh, 20.0, 20.0).degrees == (6,)
     assert _scaled_mesh(mesh, 10.0, 20.0).degrees == (3,)
     assert _scaled_mesh(mesh, 15.0, 20.0).degrees == (5,)
@@ -56,7 +58,7 @@ def test_pairs_screened_out_are_added_back_when_they_come_close(caplog, strategy
     the optimizer then adds those and re-solves, and the plan is verified (the verification checks every
     pair)."""
     scenario = load_scenario("scenarios/five_aircraft.yaml")
-    nothing = PairScreen(near_nm=-math.inf, recheck_nm=0.1)
+    nothing = PairScreen(near=-math.inf, recheck=1.0 / 3.0)  # 0.1 nm at the thesis's turn radius
     landing = replace(LandingOptions(), pair_screen=nothing, strategy=strategy)
     planner = Planner(PlanOptions(seed=0, landing=landing))
     with caplog.at_level(logging.INFO, logger="mal_planner.optimizer"):

@@ -12,10 +12,12 @@ from mal_planner.deadline import Deadline
 from mal_planner.errors import FailureClass, InvalidInput
 from mal_planner.initializer.planners import PlanningFailed, known_specs
 from mal_planner.initializer.schedule import check_request
-from mal_planner.initializer.sequencer import InitialPlan, plan_initial
+from mal_planner.initializer.sequencer import InitialPlan, Sequencer, plan_initial
 from mal_planner.landing import LandingOptions, LandingResult
+from mal_planner.landing.guess import AircraftGuess, guess_from_initial_plan
 from mal_planner.landing.sequential import SequentialOptimizer
 from mal_planner.landing.solve import LandingOptimizer, make_guesses, make_optimizer, shift_guesses, uses_sequential
+from mal_planner.scales import Scales
 from mal_planner.scenario import Scenario
 from mal_planner.trajectory import Trajectory
 from mal_planner.verification import Tolerances, VerificationReport, verify
@@ -31,13 +33,15 @@ class PlanOptions:
     optimize: bool = True
     verify: bool = True
     landing: LandingOptions = field(default_factory=LandingOptions)
-    tolerances: Tolerances = field(default_factory=Tolerances)
+    tolerances: Tolerances | None = None
+    """The verification's accuracy tolerances; None: the scenario's own (:meth:`Tolerances.for_scenario`)."""
     refinement_rounds: int = 3
     """Re-solves with a locally refined mesh where the verification finds a path constraint broken."""
     time_limit_s: float | None = None
     """Wall-clock limit of one plan; when it runs out the best result so far is returned (None: no limit)."""
-    landed_within_s: float = 3.0
-    """On a replan, aircraft this close to their last planned landing leave the plan."""
+    landed_within_turn_times: float = 0.4
+    """On a replan, aircraft this close to their last planned landing leave the plan (in the scenario's turn
+    times; thesis: 3 s)."""
 
 
 @dataclass
@@ -107,11 +111,14 @@ class PlanResult:
         return {t.callsign: next(iter(t.gate_times.values()), None) for t in self.initial.trajectories}
 
 
-def inside_airspace(scenario: Scenario, tolerance_nm: float = 0.01) -> Scenario:
+def inside_airspace(scenario: Scenario, tolerance_nm: float | None = None) -> Scenario:
     """Move initial positions that lie just outside the airspace (radar noise) onto its boundary.
 
-    Raises ValueError naming the aircraft when one is further out than ``tolerance_nm``.
+    Raises ValueError naming the aircraft when one is further out than ``tolerance_nm`` (default: twice the
+    scenario's path accuracy, 0.01 nm in the thesis).
     """
+    if tolerance_nm is None:
+        tolerance_nm = 2.0 * Scales.of(scenario).accuracy_nm
     moved = {}
     for ac in scenario.aircraft:
         clipped = np.clip(ac.position, scenario.airspace[:, 0], scenario.airspace[:, 1])
@@ -135,7 +142,7 @@ class Planner:
     on a stale state: the warm replan, then a cold solve of the same order, then a fresh initializer; and
     where the schedule fixed the landing times (or on a replan, whose radar states may no longer reach the
     scenario's times), a solve in which the optimizer chooses them. A first plan whose solve fails is tried
-    once more from the initializer with another seed. Aircraft within ``landed_within_s`` of their last
+    once more from the initializer with another seed. Aircraft within ``landed_within_turn_times`` of their last
     planned landing leave the plan quietly.
     """
 
@@ -160,7 +167,7 @@ class Planner:
         opts = self.options
         deadline = Deadline(opts.time_limit_s)
         scenario = self._without_landed(inside_airspace(scenario), start_time)
-        check_request(scenario, opts.landing.margins.hole_nm)
+        check_request(scenario, opts.landing.margins.in_nm(Scales.of(scenario)).hole_nm)
         timings: dict[str, float] = {}
         last = self.last
         t0 = time.perf_counter()
@@ -200,8 +207,8 @@ class Planner:
         last = self.last
         if last is None or not last.optimized:
             return scenario
-        landed = [cs for cs, t in last.landing_times().items()
-                  if last.start_time + t - start_time < self.options.landed_within_s]
+        soon = Scales.of(last.scenario).seconds(self.options.landed_within_turn_times)
+        landed = [cs for cs, t in last.landing_times().items() if last.start_time + t - start_time < soon]
         keep = tuple(a for a in scenario.aircraft if a.callsign not in landed)
         if landed and keep and len(keep) < len(scenario.aircraft):
             log.info("%s landed (or about to): left out of the plan", ", ".join(sorted(landed)))
@@ -254,8 +261,19 @@ class Planner:
 
     def _new_optimizer(self, scenario: Scenario, guesses, landing_options: LandingOptions | None = None
                        ) -> LandingOptimizer | SequentialOptimizer:
-        self._optimizer = make_optimizer(scenario, guesses, landing_options or self.options.landing)
+        self._optimizer = make_optimizer(scenario, guesses, landing_options or self.options.landing, self._reguess)
         return self._optimizer
+
+    def _reguess(self, scenario: Scenario, callsign: str, landing_time: float, traffic, attempt: int
+                 ) -> AircraftGuess | None:
+        """A new initial guess of one aircraft, clear of ``traffic`` (the sequential strategy's first recovery)."""
+        seed = None if self.options.seed is None else self.options.seed + 7919 * (attempt + 1)
+        try:
+            path = Sequencer(self.options.initializer).replan_one(scenario, callsign, landing_time, traffic, seed)
+        except PlanningFailed as exc:
+            log.info("%s: no new initial path (%s)", callsign, exc)
+            return None
+        return guess_from_initial_plan(scenario, [path], [landing_time])[0]
 
     def _joint_attempt(self, scenario: Scenario, start_time: float, deadline: Deadline) -> LandingResult:
         joint = replace(self.options.landing, strategy="joint")

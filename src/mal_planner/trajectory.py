@@ -13,6 +13,15 @@ import numpy as np
 from mal_planner.dynamics import CONTROL_NAMES, STATE_NAMES
 
 
+def closest_approach(a_t: np.ndarray, a_pos: np.ndarray, b_t: np.ndarray, b_pos: np.ndarray) -> float:
+    """Smallest distance (nm) between two sampled paths while both fly, on a's sample times."""
+    keep = a_t <= min(a_t[-1], b_t[-1])
+    if not keep.any():
+        return float("inf")
+    other = np.column_stack([np.interp(a_t[keep], b_t, b_pos[:, k]) for k in range(3)])
+    return float(np.linalg.norm(a_pos[keep] - other, axis=1).min())
+
+
 @dataclass(frozen=True)
 class Trajectory:
     callsign: str

@@ -3,13 +3,18 @@
 The runway is at the origin, heading -90 deg (aircraft land flying towards -y). Every scenario has an
 approach fix on the far side of the runway: the hole of a wall (layout ``wall``) or a point on the
 extended centre line (layout ``no-fly-zones``). Aircraft are strung along the arrival stream: the k-th
-has a path length to the runway (to the fix, then straight in) about 15-30 s of flight longer than the
-(k-1)-th, at a bearing from the fix within +-70 deg of the approach axis, beyond the fix; altitudes rise
-with distance like a glide slope plus jitter; headings point at the fix +-40 deg; speeds 0.04 nm/s +-10 %.
-Positions too close to another aircraft (3-D distance below the separation + margin) are redrawn.
-No-fly zones (1-3 ellipsoids, p = 2, or boxes, p = 50, from the ground up) keep clear of the aircraft, of
-each other and of a corridor around the final approach, so the runway stays reachable. Unless the user
-fixes it, the airspace grows to hold the stream (at least the thesis's x [-3, 3], y [0, 6], z [0, 0.3]).
+has a path length to the runway (to the fix, then straight in) a few tens of seconds of flight longer than
+the (k-1)-th, at a bearing from the fix within some tens of degrees of the approach axis, beyond the fix;
+altitudes rise with distance like a glide slope plus jitter; headings point at the fix +-40 deg. Positions
+too close to another aircraft (3-D distance below the separation + margin) are redrawn. No-fly zones
+(ellipsoids, p = 2, or boxes, p = 50, from the ground up) keep clear of the aircraft, of each other and of a
+corridor around the final approach, so the runway stays reachable. Unless the user fixes it, the airspace
+grows to hold the stream.
+
+Two profiles give the numbers (:data:`PROFILES`): ``thesis`` (the thesis's 6-nm box, 0.25 nm separation,
+45 deg bank; generator version 1's files, but for fixed landing times, which now keep the spacing each pair
+needs on the common approach) and ``tma`` (a real terminal area: 45 nm across,
+3 nm separation, 90 s landing spacing, 30 deg bank, half the files with a 3 deg glide path at the runway).
 
 Each scenario ``i`` draws from ``numpy.random.default_rng([seed, i])``: the same seed gives byte-identical
 files, and scenario i does not depend on how many are generated. Every text is validated with the
@@ -30,22 +35,116 @@ from mal_planner.campaign.metrics import ray_clearance_nm
 from mal_planner.obstacles import Superquadric
 from mal_planner.scenario import Scenario, ScenarioError, parse_scenario
 
-GENERATOR_VERSION = 1
+GENERATOR_VERSION = 2
 LAYOUTS = ("wall", "no-fly-zones")
 LANDING_TIME_MODES = ("free", "fixed")
-SPEED_NM_S = 0.04
-SEPARATION_NM = 0.25
-SEPARATION_MARGIN_NM = 0.25
-"""Initial 3-D distance of any two aircraft is at least the separation plus this."""
-MAX_BEARING_DEG = 70.0
-HEADING_DEVIATION_DEG = 40.0
-GLIDE_SLOPE = 0.04
-"""Altitude per distance to the runway (nm/nm, about 2.3 deg) before jitter."""
-LANDING_GAP_S = (15.0, 30.0)
-MIN_AIRSPACE = ((-3.0, 3.0), (0.0, 6.0), (0.0, 0.3))
-ZONE_CLEARANCE_NM = 0.5
-"""No-fly zones keep this far (ray distance) from every aircraft and from the approach fix."""
 ATTEMPTS = 200
+Range = tuple[float, float]
+
+
+@dataclass(frozen=True)
+class TrafficProfile:
+    """The numbers of one kind of traffic (nm, s, deg); see the README's tables for their sources."""
+
+    name: str
+    speed_nm_s: float
+    speed_spread: Range
+    """Each aircraft's speed is ``speed_nm_s`` times a factor drawn from this range."""
+    separation_nm: float
+    separation_margin_nm: float
+    """Initial 3-D distance of any two aircraft is at least the separation plus this."""
+    landing_spacing_s: float
+    max_landing_spacing_s: float
+    bank_angle_deg: float
+    n_h: Range
+    n_v: Range
+    landing_gap_s: Range
+    """Each aircraft's path to the runway is this much flight longer than the previous one's."""
+    first_beyond_fix_nm: Range
+    """The first aircraft's distance beyond the approach fix."""
+    bearing_sigma_deg: float
+    max_bearing_deg: float
+    heading_deviation_deg: float
+    glide_slope: float
+    """Altitude per distance to the runway (nm/nm) before jitter."""
+    altitude_jitter_nm: float
+    altitude_nm: Range
+    """Initial altitudes are clipped to this range."""
+    min_airspace: tuple[Range, Range, Range]
+    airspace_spare_nm: float
+    """The grown airspace holds every aircraft with this much to spare horizontally."""
+    airspace_step_nm: float
+    edge_nm: float
+    """With a fixed airspace, aircraft keep this far from its x and y edges."""
+    wall_fix_y_nm: Range
+    hole_x_nm: Range
+    hole_half_width_nm: Range
+    hole_z_nm: Range
+    hole_half_height_nm: Range
+    wall_thickness_nm: float
+    wall_ahead_nm: float
+    """With a wall, every aircraft starts at least this far beyond it."""
+    fix_y_nm: Range
+    """The approach fix of the no-fly-zones layout, on the centre line."""
+    fix_ahead_nm: float
+    zone_count: tuple[int, int]
+    zone_semi_axis_nm: Range
+    zone_y_nm: tuple[float, float, float]
+    """Zone centres: y from the first value to max(second, third * farthest aircraft's y)."""
+    zone_reach_nm: float
+    """Zone centres: |x| up to max(this, the farthest aircraft's |x|)."""
+    corridor_half_width_nm: float
+    corridor_beyond_fix_nm: float
+    corridor_behind_runway_nm: float
+    zone_edge_nm: float
+    zone_clearance_nm: float
+    """Zones keep this far (ray distance) from every aircraft and from the approach fix."""
+    zone_gap_nm: float
+    fix_point_z_nm: float
+    """Height of the approach fix (for the zones' clearance)."""
+    fixed_slack_s: Range
+    """Fixed schedules: each landing time is its earliest plus this ..."""
+    fixed_spacing_extra_s: Range
+    """... and at least the previous landing plus the spacing plus this."""
+    glide_path_share: float = 0.0
+    """Share of the files with a glide path at the runway (and at the gate)."""
+    glide_path_deg: float = 3.0
+
+
+THESIS = TrafficProfile(
+    name="thesis", speed_nm_s=0.04, speed_spread=(0.9, 1.1), separation_nm=0.25, separation_margin_nm=0.25,
+    landing_spacing_s=15.0, max_landing_spacing_s=30.0, bank_angle_deg=45.0, n_h=(-2.0, 2.0), n_v=(0.0, 2.0),
+    landing_gap_s=(15.0, 30.0), first_beyond_fix_nm=(2.0, 3.0), bearing_sigma_deg=35.0, max_bearing_deg=70.0,
+    heading_deviation_deg=40.0, glide_slope=0.04, altitude_jitter_nm=0.03, altitude_nm=(0.08, math.inf),
+    min_airspace=((-3.0, 3.0), (0.0, 6.0), (0.0, 0.3)), airspace_spare_nm=1.0, airspace_step_nm=0.5, edge_nm=0.3,
+    wall_fix_y_nm=(2.5, 3.5), hole_x_nm=(-0.5, 0.5), hole_half_width_nm=(0.6, 1.1), hole_z_nm=(0.12, 0.18),
+    hole_half_height_nm=(0.04, 0.06), wall_thickness_nm=0.001, wall_ahead_nm=1.5, fix_y_nm=(2.0, 3.0),
+    fix_ahead_nm=0.5, zone_count=(1, 3), zone_semi_axis_nm=(0.3, 0.9), zone_y_nm=(1.0, 1.5, 0.8), zone_reach_nm=1.5,
+    corridor_half_width_nm=0.6, corridor_beyond_fix_nm=0.5, corridor_behind_runway_nm=1.0, zone_edge_nm=0.2,
+    zone_clearance_nm=0.5, zone_gap_nm=0.3, fix_point_z_nm=0.15, fixed_slack_s=(5.0, 25.0),
+    fixed_spacing_extra_s=(1.0, 8.0))
+"""The thesis's box (chapter 6): V = 0.04 nm/s, 0.25 nm separation, 15 s landing spacing, 45 deg bank."""
+
+TMA = TrafficProfile(
+    name="tma", speed_nm_s=0.05, speed_spread=(0.84, 1.16), separation_nm=3.0, separation_margin_nm=1.0,
+    landing_spacing_s=90.0, max_landing_spacing_s=180.0, bank_angle_deg=30.0, n_h=(-1.0, 1.0), n_v=(0.7, 1.3),
+    landing_gap_s=(30.0, 60.0), first_beyond_fix_nm=(9.0, 14.0), bearing_sigma_deg=45.0, max_bearing_deg=80.0,
+    heading_deviation_deg=40.0, glide_slope=0.03, altitude_jitter_nm=0.15, altitude_nm=(0.5, 1.0),
+    min_airspace=((-22.5, 22.5), (-5.0, 40.0), (0.0, 1.2)), airspace_spare_nm=3.0, airspace_step_nm=2.5,
+    edge_nm=2.0, wall_fix_y_nm=(8.0, 11.0), hole_x_nm=(-1.0, 1.0), hole_half_width_nm=(1.5, 3.0),
+    hole_z_nm=(0.35, 0.55), hole_half_height_nm=(0.08, 0.12), wall_thickness_nm=0.01, wall_ahead_nm=4.0,
+    fix_y_nm=(8.0, 11.0), fix_ahead_nm=2.0, zone_count=(1, 2), zone_semi_axis_nm=(2.0, 5.0), zone_y_nm=(5.0, 8.0, 0.8),
+    zone_reach_nm=12.0, corridor_half_width_nm=3.0, corridor_beyond_fix_nm=3.0, corridor_behind_runway_nm=5.0,
+    zone_edge_nm=1.5, zone_clearance_nm=3.0, zone_gap_nm=2.0, fix_point_z_nm=0.45, fixed_slack_s=(10.0, 60.0),
+    fixed_spacing_extra_s=(2.0, 20.0), glide_path_share=0.5)
+"""A real terminal area: 45 x 45 nm, ceiling 1.2 nm (about 7,300 ft), arrivals 18-40 nm out at 0.5-1.0 nm
+(3,000-6,000 ft) and 0.042-0.058 nm/s (150-210 kt), 3 nm radar separation, 90 s landing spacing, 30 deg bank,
+a 3 deg glide path in half the files, 1-2 restricted areas 4-10 nm across (sources: README, "Real-size traffic")."""
+
+PROFILES: dict[str, TrafficProfile] = {p.name: p for p in (THESIS, TMA)}
+
+SEPARATION_MARGIN_NM = THESIS.separation_margin_nm
+"""The thesis profile's margin (kept for its users)."""
 
 
 class TrafficError(ValueError):
@@ -62,13 +161,20 @@ class TrafficSpec:
     landing_times: str = "free"
     """free (no landing times in the file), fixed (a feasible-looking schedule) or mixed."""
     airspace_nm: tuple[float, float] | None = None
-    """Fixed x and y extents (x centred on the runway, y from 0); None: grows with the stream."""
+    """Fixed x and y extents (x centred on the runway, y from the profile's lower edge); None: grows."""
+    profile: str = "thesis"
+    """A key of :data:`PROFILES`."""
+
+    @property
+    def numbers(self) -> TrafficProfile:
+        return PROFILES[self.profile]
 
     def describe(self) -> str:
         n0, n1 = self.aircraft
         space = "auto" if self.airspace_nm is None else f"{self.airspace_nm[0]:g} {self.airspace_nm[1]:g}"
-        return (f"--aircraft {n0 if n0 == n1 else f'{n0}-{n1}'} --seed {self.seed} --layout {self.layout} "
+        text = (f"--aircraft {n0 if n0 == n1 else f'{n0}-{n1}'} --seed {self.seed} --layout {self.layout} "
                 f"--landing-times {self.landing_times} --airspace-nm {space}")
+        return text if self.profile == "thesis" else f"{text} --profile {self.profile}"
 
 
 @dataclass(frozen=True)
@@ -97,68 +203,77 @@ class _Draw:
     """One scenario's random draws, in a fixed order."""
 
     def __init__(self, spec: TrafficSpec, index: int) -> None:
-        self.spec, self.index = spec, index
+        self.spec, self.index, self.profile = spec, index, spec.numbers
         self.rng = np.random.default_rng([spec.seed, index])
         n0, n1 = spec.aircraft
         self.n = int(self.rng.integers(n0, n1 + 1))
         self.layout = spec.layout if spec.layout != "mixed" else LAYOUTS[int(self.rng.integers(2))]
         self.times_mode = (spec.landing_times if spec.landing_times != "mixed"
                            else LANDING_TIME_MODES[int(self.rng.integers(2))])
+        share = self.profile.glide_path_share  # drawn only where the profile has glide paths (thesis: as before)
+        self.glide_deg = self.profile.glide_path_deg if share > 0.0 and self.rng.random() < share else 0.0
 
     def geometry(self) -> _Geometry:
-        rng = self.rng
+        rng, pr = self.rng, self.profile
         if self.layout == "wall":
-            wall_y, hole_x = rng.uniform(2.5, 3.5), rng.uniform(-0.5, 0.5)
-            half_width, hole_z, half_height = rng.uniform(0.6, 1.1), rng.uniform(0.12, 0.18), rng.uniform(0.04, 0.06)
+            wall_y, hole_x = rng.uniform(*pr.wall_fix_y_nm), rng.uniform(*pr.hole_x_nm)
+            half_width, hole_z = rng.uniform(*pr.hole_half_width_nm), rng.uniform(*pr.hole_z_nm)
+            half_height = rng.uniform(*pr.hole_half_height_nm)
+            if self.glide_deg:  # the hole on the glide path: the gate is the final approach fix
+                hole_z = wall_y * math.tan(math.radians(self.glide_deg))
             wall = {"position": _r(wall_y, 3), "hole_x": (_r(hole_x - half_width, 3), _r(hole_x + half_width, 3)),
                     "hole_z": (_r(hole_z - half_height, 3), _r(hole_z + half_height, 3))}
-            return _Geometry(np.array([hole_x, wall_y]), 1.5, wall)
-        return _Geometry(np.array([0.0, rng.uniform(2.0, 3.0)]), 0.5)
+            return _Geometry(np.array([hole_x, wall_y]), pr.wall_ahead_nm, wall)
+        return _Geometry(np.array([0.0, rng.uniform(*pr.fix_y_nm)]), pr.fix_ahead_nm)
 
     def aircraft(self, geo: _Geometry, airspace_xy: tuple[float, float] | None) -> list[dict[str, float]]:
         """Positions (x, y, z), headings and speeds of the stream; TrafficError if they do not fit."""
-        rng = self.rng
+        rng, pr = self.rng, self.profile
         fix_y = float(geo.fix[1])
-        path = fix_y + rng.uniform(2.0, 3.0)  # path length of the first aircraft to the runway
+        path = fix_y + rng.uniform(*pr.first_beyond_fix_nm)  # path length of the first aircraft to the runway
         placed: list[dict[str, float]] = []
         for _ in range(self.n):
-            speed = SPEED_NM_S * rng.uniform(0.9, 1.1)
+            speed = pr.speed_nm_s * rng.uniform(*pr.speed_spread)
             for _try in range(ATTEMPTS):
                 radius = path - fix_y
                 limit = math.degrees(math.acos(min(1.0, geo.ahead_nm / radius)))
-                bearing = float(rng.normal(0.0, 35.0))  # deg from the approach axis (+y), seen from the fix
-                if abs(bearing) > min(MAX_BEARING_DEG, limit):
+                bearing = float(rng.normal(0.0, pr.bearing_sigma_deg))  # deg from the approach axis, seen from the fix
+                if abs(bearing) > min(pr.max_bearing_deg, limit):
                     continue
                 x, y = geo.fix + radius * np.array([math.sin(math.radians(bearing)), math.cos(math.radians(bearing))])
-                z = max(0.08, GLIDE_SLOPE * math.hypot(x, y) + rng.uniform(-0.03, 0.03))
-                if airspace_xy is not None and (abs(x) > airspace_xy[0] / 2 - 0.3 or y > airspace_xy[1] - 0.3):
+                z = max(pr.altitude_nm[0], pr.glide_slope * math.hypot(x, y)
+                        + rng.uniform(-pr.altitude_jitter_nm, pr.altitude_jitter_nm))
+                z = min(z, pr.altitude_nm[1])
+                if airspace_xy is not None and (abs(x) > airspace_xy[0] / 2 - pr.edge_nm
+                                                or y > airspace_xy[1] - pr.edge_nm):
                     continue
                 p = np.array([x, y, z])
-                if all(np.linalg.norm(p - q["p"]) >= SEPARATION_NM + SEPARATION_MARGIN_NM for q in placed):
+                if all(np.linalg.norm(p - q["p"]) >= pr.separation_nm + pr.separation_margin_nm for q in placed):
                     to_fix = math.degrees(math.atan2(fix_y - y, geo.fix[0] - x))
-                    heading = to_fix + rng.uniform(-HEADING_DEVIATION_DEG, HEADING_DEVIATION_DEG)
+                    heading = to_fix + rng.uniform(-pr.heading_deviation_deg, pr.heading_deviation_deg)
                     heading = (heading + 180.0) % 360.0 - 180.0
                     placed.append({"p": p, "heading": heading, "speed": speed})
                     break
             else:
                 raise TrafficError(f"no room for aircraft {len(placed) + 1} of {self.n}")
-            path += speed * rng.uniform(*LANDING_GAP_S)
+            path += speed * rng.uniform(*pr.landing_gap_s)
         return placed
 
     def zones(self, geo: _Geometry, aircraft: list[dict[str, float]], airspace: np.ndarray) -> list[Superquadric]:
-        """1-3 no-fly zones clear of the aircraft, the fix, each other and the final-approach corridor."""
-        rng = self.rng
-        count = int(rng.integers(1, 4))
-        points = np.array([a["p"] for a in aircraft] + [[geo.fix[0], geo.fix[1], 0.15]])
+        """No-fly zones clear of the aircraft, the fix, each other and the final-approach corridor."""
+        rng, pr = self.rng, self.profile
+        count = int(rng.integers(pr.zone_count[0], pr.zone_count[1] + 1))
+        points = np.array([a["p"] for a in aircraft] + [[geo.fix[0], geo.fix[1], pr.fix_point_z_nm]])
         far_y = float(max(points[:, 1]))
-        reach_x = float(max(np.abs(points[:, 0]).max(), 1.5))
+        reach_x = float(max(np.abs(points[:, 0]).max(), pr.zone_reach_nm))
         zmax = float(airspace[2, 1])
         zones: list[Superquadric] = []
+        y0, y1, y_share = pr.zone_y_nm
         for k in range(count):
             for _try in range(ATTEMPTS):
                 box = bool(rng.integers(2))
-                a, b = rng.uniform(0.3, 0.9, size=2)
-                cx, cy = rng.uniform(-reach_x, reach_x), rng.uniform(1.0, max(1.5, 0.8 * far_y))
+                a, b = rng.uniform(*pr.zone_semi_axis_nm, size=2)
+                cx, cy = rng.uniform(-reach_x, reach_x), rng.uniform(y0, max(y1, y_share * far_y))
                 if box:
                     zone = Superquadric(f"zone-{k + 1}", (_r(cx, 3), _r(cy, 3), _r(zmax / 2, 3)),
                                         (_r(a, 3), _r(b, 3), _r(zmax, 3)), 50)
@@ -166,14 +281,15 @@ class _Draw:
                     zone = Superquadric(f"zone-{k + 1}", (_r(cx, 3), _r(cy, 3), 0.0), (_r(a, 3), _r(b, 3),
                                                                                       _r(1.5 * zmax, 3)), 2)
                 lo, hi = zone.bounding_box()[:2].T
-                corridor_lo, corridor_hi = np.array([-0.6, -1.0]), np.array([0.6, geo.fix[1] + 0.5])
+                corridor_lo = np.array([-pr.corridor_half_width_nm, -pr.corridor_behind_runway_nm])
+                corridor_hi = np.array([pr.corridor_half_width_nm, geo.fix[1] + pr.corridor_beyond_fix_nm])
                 if np.all(lo < corridor_hi) and np.all(hi > corridor_lo):
                     continue
-                if np.any(lo < airspace[:2, 0] + 0.2) or np.any(hi > airspace[:2, 1] - 0.2):
+                if np.any(lo < airspace[:2, 0] + pr.zone_edge_nm) or np.any(hi > airspace[:2, 1] - pr.zone_edge_nm):
                     continue
-                if np.min(ray_clearance_nm(zone, points)) < ZONE_CLEARANCE_NM:
+                if np.min(ray_clearance_nm(zone, points)) < pr.zone_clearance_nm:
                     continue
-                if any(_boxes_overlap(zone, other, 0.3) for other in zones):
+                if any(_boxes_overlap(zone, other, pr.zone_gap_nm) for other in zones):
                     continue
                 zones.append(zone)
                 break
@@ -191,20 +307,25 @@ def _ceil(value: float, step: float) -> float:
     return _r(math.ceil(value / step - 1e-9) * step, 3)
 
 
-def _airspace(aircraft: list[dict[str, float]], fixed_xy: tuple[float, float] | None) -> np.ndarray:
+def _airspace(aircraft: list[dict[str, float]], fixed_xy: tuple[float, float] | None,
+              pr: TrafficProfile) -> np.ndarray:
     p = np.array([a["p"] for a in aircraft])
-    z_top = max(MIN_AIRSPACE[2][1], _ceil(float(p[:, 2].max()) + 0.05, 0.1))
+    (x_lo, x_hi), (y_lo, y_hi), (z_lo, z_hi) = pr.min_airspace
+    z_top = max(z_hi, _ceil(float(p[:, 2].max()) + 0.05, 0.1))
     if fixed_xy is not None:
         half, top = fixed_xy[0] / 2.0, fixed_xy[1]
     else:
-        half = max(MIN_AIRSPACE[0][1], _ceil(float(np.abs(p[:, 0]).max()) + 1.0, 0.5))
-        top = max(MIN_AIRSPACE[1][1], _ceil(float(p[:, 1].max()) + 1.0, 0.5))
-    return np.array([[-half, half], [0.0, top], [0.0, z_top]])
+        step, spare = pr.airspace_step_nm, pr.airspace_spare_nm
+        half = max(x_hi, _ceil(float(np.abs(p[:, 0]).max()) + spare, step))
+        top = max(y_hi, _ceil(float(p[:, 1].max()) + spare, step))
+    return np.array([[-half, half], [y_lo, top], [z_lo, z_top]])
 
 
-def fixed_schedule(scenario: Scenario, rng: np.random.Generator) -> dict[str, float]:
-    """Landing times: by earliest time with some adjacent swaps; each >= its earliest + 5-25 s slack and
-    >= the previous landing + the minimum spacing + 1-8 s."""
+def fixed_schedule(scenario: Scenario, rng: np.random.Generator,
+                   profile: TrafficProfile = THESIS) -> dict[str, float]:
+    """Landing times: by earliest time with some adjacent swaps; each >= its earliest + the profile's slack and
+    >= the previous landing + the spacing the pair needs (:func:`landing_spacing`) + a little."""
+    from mal_planner.initializer.schedule import landing_spacing
     from mal_planner.initializer.timing import earliest_landing_times
 
     earliest = earliest_landing_times(scenario)
@@ -216,10 +337,14 @@ def fixed_schedule(scenario: Scenario, rng: np.random.Generator) -> dict[str, fl
             i += 1
         i += 1
     times: dict[str, float] = {}
-    previous = -math.inf
+    previous, leader = -math.inf, None
     for cs in order:
-        t = max(earliest[cs] + rng.uniform(5.0, 25.0), previous + scenario.landing_spacing_s + rng.uniform(1.0, 8.0))
+        follower = scenario.aircraft_by_callsign(cs)
+        spacing = scenario.landing_spacing_s if leader is None else landing_spacing(scenario, leader, follower)
+        t = max(earliest[cs] + rng.uniform(*profile.fixed_slack_s),
+                previous + spacing + rng.uniform(*profile.fixed_spacing_extra_s))
         times[cs] = previous = _ceil(t, 0.1)
+        leader = follower
     return times
 
 
@@ -227,8 +352,9 @@ def file_name(index: int, n: int, layout: str) -> str:
     return f"traffic-{index:04d}-n{n}-{layout}.yaml"
 
 
-def _document(name: str, aircraft: list[dict[str, float]], airspace: np.ndarray, geo: _Geometry,
+def _document(name: str, draw: _Draw, aircraft: list[dict[str, float]], airspace: np.ndarray, geo: _Geometry,
               zones: list[Superquadric], landing: dict[str, float] | None) -> dict[str, Any]:
+    pr = draw.profile
     entries = []
     for i, a in enumerate(aircraft):
         cs = f"T{i + 1:02d}"
@@ -239,21 +365,28 @@ def _document(name: str, aircraft: list[dict[str, float]], airspace: np.ndarray,
         entries.append(entry)
     obstacles: list[dict[str, Any]] = []
     if geo.wall is not None:
-        obstacles.append({"type": "wall_with_hole", "name": "wall", "axis": "y", "position": geo.wall["position"],
-                          "thickness": 0.001,
-                          "span": {"x": [_r(v) for v in airspace[0]], "z": [_r(v) for v in airspace[2]]},
-                          "hole": {"x": list(geo.wall["hole_x"]), "z": list(geo.wall["hole_z"])}, "p": 50})
+        wall: dict[str, Any] = {
+            "type": "wall_with_hole", "name": "wall", "axis": "y", "position": geo.wall["position"],
+            "thickness": pr.wall_thickness_nm,
+            "span": {"x": [_r(v) for v in airspace[0]], "z": [_r(v) for v in airspace[2]]},
+            "hole": {"x": list(geo.wall["hole_x"]), "z": list(geo.wall["hole_z"])}, "p": 50}
+        if draw.glide_deg:
+            wall["flight_path_angle_deg"] = -draw.glide_deg
+        obstacles.append(wall)
     for zone in zones:
         obstacles.append({"type": "superquadric", "name": zone.name, "center": list(zone.center),
                           "semi_axes": list(zone.semi_axes), "p": zone.p})
     kind = "wall with a hole" if geo.wall else "no-fly zones"
-    return {"name": name, "description": f"{len(aircraft)} arriving aircraft ({kind})",
+    glide = f", {draw.glide_deg:g} deg glide path" if draw.glide_deg else ""
+    return {"name": name, "description": f"{len(aircraft)} arriving aircraft ({kind}{glide})",
             "gravity": 0.0052952,
-            "runway": {"position": [0.0, 0.0, 0.0], "flight_path_angle_deg": 0.0, "heading_deg": -90.0},
+            "runway": {"position": [0.0, 0.0, 0.0], "flight_path_angle_deg": -draw.glide_deg or 0.0,
+                       "heading_deg": -90.0},
             "airspace": {k: [_r(v) for v in airspace[i]] for i, k in enumerate("xyz")},
             "aircraft": entries, "obstacles": obstacles,
-            "separation": {"distance_nm": SEPARATION_NM, "landing_spacing_s": 15.0, "max_landing_spacing_s": 30.0},
-            "limits": {"bank_angle_deg": 45.0, "n_h": [-2.0, 2.0], "n_v": [0.0, 2.0]}}
+            "separation": {"distance_nm": pr.separation_nm, "landing_spacing_s": pr.landing_spacing_s,
+                           "max_landing_spacing_s": pr.max_landing_spacing_s},
+            "limits": {"bank_angle_deg": pr.bank_angle_deg, "n_h": list(pr.n_h), "n_v": list(pr.n_v)}}
 
 
 def _text(document: dict[str, Any], spec: TrafficSpec, index: int, draw: _Draw) -> str:
@@ -274,17 +407,17 @@ def generate_one(spec: TrafficSpec, index: int) -> GeneratedScenario:
         geo = draw.geometry()
         try:
             aircraft = draw.aircraft(geo, spec.airspace_nm)
-            airspace = _airspace(aircraft, spec.airspace_nm)
+            airspace = _airspace(aircraft, spec.airspace_nm, draw.profile)
             zones = draw.zones(geo, aircraft, airspace) if draw.layout == "no-fly-zones" else []
         except TrafficError as exc:
             problem = str(exc)
             continue
-        document = _document(name.removesuffix(".yaml"), aircraft, airspace, geo, zones, None)
+        document = _document(name.removesuffix(".yaml"), draw, aircraft, airspace, geo, zones, None)
         try:
             scenario = parse_scenario(yaml.safe_load(_text(document, spec, index, draw)), name)
             if draw.times_mode == "fixed":
-                document = _document(name.removesuffix(".yaml"), aircraft, airspace, geo, zones,
-                                     fixed_schedule(scenario, draw.rng))
+                document = _document(name.removesuffix(".yaml"), draw, aircraft, airspace, geo, zones,
+                                     fixed_schedule(scenario, draw.rng, draw.profile))
             text = _text(document, spec, index, draw)
             scenario = parse_scenario(yaml.safe_load(text), name)
         except ScenarioError as exc:

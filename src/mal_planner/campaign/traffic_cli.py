@@ -7,7 +7,7 @@ import re
 import sys
 from pathlib import Path
 
-from mal_planner.campaign.traffic import TrafficError, TrafficSpec, generate_one
+from mal_planner.campaign.traffic import PROFILES, TrafficError, TrafficSpec, generate_one
 
 PROG = "mal-traffic"
 MAX_AIRCRAFT = 50
@@ -40,7 +40,12 @@ def build_parser() -> argparse.ArgumentParser:
                         help="free: no landing times in the files; fixed: a feasible-looking schedule; mixed: either "
                              "at random (default: %(default)s)")
     parser.add_argument("--airspace-nm", type=float, nargs=2, metavar=("X", "Y"), default=None,
-                        help="fixed airspace extents: x in [-X/2, X/2], y in [0, Y] (default: grows with N)")
+                        help="fixed airspace extents: x in [-X/2, X/2], y from the profile's lower edge to Y "
+                             "(default: grows with N)")
+    parser.add_argument("--profile", choices=sorted(PROFILES), default="thesis",
+                        help="the numbers of the traffic: thesis (the thesis's 6-nm box, 0.25 nm separation, 45 deg "
+                             "bank) or tma (a real terminal area: 45 nm across, 3 nm separation, 90 s landing "
+                             "spacing, 30 deg bank, glide paths) (default: %(default)s)")
     return parser
 
 
@@ -63,7 +68,7 @@ def main(argv: list[str] | None = None) -> int:
                                    "earliest_landing_times, which this installation lacks") from None
         spec = TrafficSpec(aircraft=args.aircraft, seed=args.seed, layout=args.layout,
                            landing_times=args.landing_times,
-                           airspace_nm=tuple(args.airspace_nm) if args.airspace_nm else None)
+                           airspace_nm=tuple(args.airspace_nm) if args.airspace_nm else None, profile=args.profile)
         args.out.mkdir(parents=True, exist_ok=True)
         for index in range(args.count):
             generated = generate_one(spec, index)

@@ -16,7 +16,7 @@ import numpy as np
 from scipy.spatial import cKDTree
 
 from mal_planner.initializer.collision import CollisionChecker
-from mal_planner.initializer.planners import PlanningFailed, require_free_endpoints
+from mal_planner.initializer.planners import PlanningFailed, default_step, require_free_endpoints
 from mal_planner.initializer.smoothing import SmoothedSearch
 
 
@@ -130,7 +130,8 @@ class MultiRRT(SmoothedSearch):
     """Multiple-tree RRT (Algorithm 3-4). Options:
 
     ``max_trees`` (>= 2, start and goal trees included), ``seeds_per_axis`` (grid seeds, an int or one per
-    axis), ``max_iterations``, ``max_edge`` (nm; the steering step), ``goal_bias`` (probability that the
+    axis), ``max_iterations``, ``max_edge`` (nm; the steering step; None: :func:`default_step` of the
+    airspace, 1 nm in the thesis), ``goal_bias`` (probability that the
     sample is the goal or the start, alternately), ``smooth_rounds`` (random-shortcut rounds; 0: greedy
     shortcut only), ``rebuild_every`` (nodes added between kd-tree rebuilds).
     """
@@ -138,7 +139,7 @@ class MultiRRT(SmoothedSearch):
     max_trees: int = 8
     seeds_per_axis: tuple[int, int, int] | int = (4, 4, 2)
     max_iterations: int = 5000
-    max_edge: float = 1.0
+    max_edge: float | None = None
     goal_bias: float = 0.05
     smooth_rounds: int = 40
     rebuild_every: int = 64
@@ -147,7 +148,7 @@ class MultiRRT(SmoothedSearch):
     def __post_init__(self) -> None:
         if self.max_trees < 2:
             raise ValueError(f"max_trees must be >= 2, got {self.max_trees}")
-        if self.max_iterations < 1 or self.max_edge <= 0:
+        if self.max_iterations < 1 or (self.max_edge is not None and self.max_edge <= 0):
             raise ValueError("max_iterations must be >= 1 and max_edge > 0")
         self.last_iterations = 0
         self.last_trees = 0
@@ -166,6 +167,7 @@ class MultiRRT(SmoothedSearch):
         seeds = grid_seeds(checker, self.seeds_per_axis)
         seeds = seeds[rng.permutation(len(seeds))]
         lo, hi = checker.lower, checker.upper
+        max_edge = self.max_edge or default_step(checker)
         for it in range(self.max_iterations):
             if it < len(seeds):
                 sample = seeds[it]
@@ -175,8 +177,8 @@ class MultiRRT(SmoothedSearch):
                 sample = rng.uniform(lo, hi)
             nearest = forest.nearest_per_tree(sample)
             near_i, near_d = min(nearest.values(), key=lambda v: v[1])
-            if near_d > self.max_edge:  # steer towards the sample
-                sample = forest.pos[near_i] + (sample - forest.pos[near_i]) * (self.max_edge / near_d)
+            if near_d > max_edge:  # steer towards the sample
+                sample = forest.pos[near_i] + (sample - forest.pos[near_i]) * (max_edge / near_d)
                 nearest = forest.nearest_per_tree(sample)
             if not checker.point_free(sample):
                 continue

@@ -17,7 +17,7 @@ from functools import cache
 import numpy as np
 
 from mal_planner.initializer.collision import CollisionChecker
-from mal_planner.initializer.planners import OMPL_PREFIX, PlanningFailed, require_free_endpoints
+from mal_planner.initializer.planners import OMPL_PREFIX, PlanningFailed, default_step, require_free_endpoints
 from mal_planner.initializer.smoothing import SmoothedSearch
 
 _GEOMETRIC_PLANNERS = (
@@ -48,14 +48,15 @@ class OmplPlanner(SmoothedSearch):
     ``time_limit`` (s per query); ``max_iterations``: anytime planners such as RRT* run in rounds of this
     many termination-condition polls (about one per iteration) until a round ends with an exact solution
     (None: 1000); ``iteration_cap``: polls after which any planner gives up;
-    ``range`` (nm; the planner's maximum motion, None: OMPL's default), ``smooth_rounds``.
+    ``range`` (nm; the planner's maximum motion, None: :func:`default_step` of the airspace, as multi-rrt's),
+    ``smooth_rounds``.
     """
 
     name: str
     time_limit: float = 5.0
     max_iterations: int | None = None
     iteration_cap: int = 50000
-    range: float | None = 1.0
+    range: float | None = None
     smooth_rounds: int = 40
 
     def __post_init__(self) -> None:
@@ -104,8 +105,8 @@ class OmplPlanner(SmoothedSearch):
             s_state[i], g_state[i] = float(start[i]), float(goal[i])
         ss.setStartAndGoalStates(s_state, g_state)
         planner = getattr(og, self.name)(si)
-        if self.range is not None and hasattr(planner, "setRange"):
-            planner.setRange(float(self.range))
+        if hasattr(planner, "setRange"):
+            planner.setRange(float(self.range or default_step(checker)))
         ss.setPlanner(planner)
         ss.setOptimizationObjective(ob.PathLengthOptimizationObjective(si))
 

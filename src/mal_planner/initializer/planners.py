@@ -76,6 +76,16 @@ def make_planner(spec: str, **options: Any) -> PathPlanner:
     raise ValueError(f"unknown planner {spec!r} (known: {', '.join(known_specs())})")
 
 
+STEP_SHARE = 0.12
+"""The planners' steering step (RRT's maximum edge, OMPL's range) as a share of the airspace's diagonal: 1 nm in
+the thesis's 6 x 6 x 0.3 nm box, 7.6 nm in a 45 x 45 nm terminal area (OMPL's own default is 0.2)."""
+
+
+def default_step(checker: CollisionChecker) -> float:
+    """The steering step (nm) for the checker's airspace (see :data:`STEP_SHARE`)."""
+    return STEP_SHARE * float(np.linalg.norm(checker.upper - checker.lower))
+
+
 def path_length(path: np.ndarray) -> float:
     """Total length of a polyline (K, 3)."""
     path = np.asarray(path, dtype=float)

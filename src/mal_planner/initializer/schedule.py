@@ -20,13 +20,16 @@ from dataclasses import dataclass
 import numpy as np
 
 from mal_planner.errors import InfeasibleRequest
+from mal_planner.initializer.approach import FINAL_RADII
 from mal_planner.initializer.timing import reachable_lower_bound
-from mal_planner.scenario import Scenario
+from mal_planner.scales import Scales
+from mal_planner.scenario import Aircraft, Scenario
 
 log = logging.getLogger("mal_planner.initializer")
 
-DEFAULT_MARGIN_S = 5.0
-"""Scheduled landing times sit this far after the turn-aware earliest estimate (room for the optimizer)."""
+DEFAULT_MARGIN_TURN_TIMES = 2.0 / 3.0
+"""Scheduled landing times sit this many turn times after the turn-aware earliest estimate (room for the
+optimizer; thesis: 5 s)."""
 
 
 @dataclass(frozen=True)
@@ -86,10 +89,13 @@ def check_request(scenario: Scenario, gate_margin_nm: float = 0.0) -> None:
                                     f"the minimum spacing is {scenario.landing_spacing_s:g} s")
 
 
-def vertical_escape_problem(scenario: Scenario, ac, step_s: float = 0.05, horizon_s: float = 120.0) -> str | None:
+def vertical_escape_problem(scenario: Scenario, ac) -> str | None:
     """Why ``ac`` crosses the airspace's ceiling (floor) even when it pulls its vertical load factor to the
     limit at once (e.g. a radar track at the ceiling, still climbing), or None. The flight-path angle rate
-    (g / V)(n_v - cos gamma) does not depend on n_h, so the extreme n_v is the best escape (RK4 on the model)."""
+    (g / V)(n_v - cos gamma) does not depend on n_h, so the extreme n_v is the best escape (RK4 on the model,
+    steps of T / 150 for at most 16 T, thesis: 0.05 s and 120 s)."""
+    scales = Scales.of(scenario)
+    step_s, horizon_s = scales.seconds(1.0 / 150.0), scales.seconds(16.0)
     lo, hi = scenario.airspace[2]
     gamma = float(ac.state0[3])
     if gamma == 0.0:
@@ -113,10 +119,37 @@ def vertical_escape_problem(scenario: Scenario, ac, step_s: float = 0.05, horizo
     return None
 
 
-def make_schedule(scenario: Scenario, earliest: Mapping[str, float], margin_s: float = DEFAULT_MARGIN_S
+def common_approach_nm(scenario: Scenario) -> float:
+    """Length (nm) of the path every aircraft flies in file to the runway: from the gate's hole (the thesis's
+    wall), else the straight final approach of the initializer (:data:`FINAL_RADII` turn radii)."""
+    runway = scenario.runway_state[:3]
+    if scenario.gates:
+        return float(np.linalg.norm(scenario.gates[0].center() - runway))
+    return FINAL_RADII * Scales.of(scenario).length_nm
+
+
+def landing_spacing(scenario: Scenario, leader: Aircraft, follower: Aircraft) -> float:
+    """Time (s) between the landings of ``leader`` and ``follower`` (who lands next) that keeps them separated
+    on the common approach of length D (:func:`common_approach_nm`), at least the scenario's spacing.
+
+    A faster follower is closest when the leader lands: it must then be a separation S out, S / V_f. A slower
+    follower is closest when it joins the common approach: the leader must then be S ahead, which takes
+    S / V_l + D (1 / V_f - 1 / V_l) between the landings. With one spacing for every pair, a slow aircraft
+    behind a fast one through a gate 8.5 nm out needed 103 s, not the 90 s it was given, and no plan existed.
+    """
+    sep, v_l, v_f = scenario.separation_nm, leader.speed, follower.speed
+    gap = sep / v_f if v_f >= v_l else sep / v_l + common_approach_nm(scenario) * (1.0 / v_f - 1.0 / v_l)
+    return max(scenario.landing_spacing_s, gap)
+
+
+def make_schedule(scenario: Scenario, earliest: Mapping[str, float], margin_s: float | None = None
                   ) -> LandingSchedule:
-    """Order and landing times (see the module docstring)."""
-    spacing = scenario.landing_spacing_s
+    """Order and landing times (see the module docstring); ``margin_s`` default: :data:`DEFAULT_MARGIN_TURN_TIMES`.
+
+    Each pair keeps the spacing :func:`landing_spacing` asks for (the scenario's, or more behind a faster
+    aircraft)."""
+    if margin_s is None:
+        margin_s = Scales.of(scenario).seconds(DEFAULT_MARGIN_TURN_TIMES)
     times: dict[str, float] = {}
     fixed = frozenset(ac.callsign for ac in scenario.aircraft if ac.landing_time is not None)
     for ac in scenario.aircraft:
@@ -128,10 +161,16 @@ def make_schedule(scenario: Scenario, earliest: Mapping[str, float], margin_s: f
     free = sorted((ac.callsign for ac in scenario.aircraft if ac.landing_time is None),
                   key=lambda cs: (earliest[cs], cs))
     for cs in free:
+        me = scenario.aircraft_by_callsign(cs)
         t = earliest[cs] + margin_s
-        for taken in sorted(times.values()):  # first slot at or after t that keeps the spacing to all taken
-            if abs(t - taken) < spacing:
-                t = taken + spacing
+        moved = True
+        while moved:  # the first slot at or after t that keeps the spacing to every time taken
+            moved = False
+            for other, taken in sorted(times.items(), key=lambda item: item[1]):
+                ac = scenario.aircraft_by_callsign(other)
+                if taken <= t < taken + landing_spacing(scenario, ac, me) or \
+                        t <= taken < t + landing_spacing(scenario, me, ac):
+                    t, moved = taken + landing_spacing(scenario, ac, me), True
         times[cs] = float(t)
     order = tuple(sorted(times, key=lambda cs: (times[cs], earliest[cs], cs)))
     return LandingSchedule(order, times, dict(earliest), fixed)

@@ -20,18 +20,26 @@
 
 from __future__ import annotations
 
+import itertools
 import logging
+import math
 import time
-from dataclasses import dataclass, field
+import zlib
+from collections.abc import Sequence
+from dataclasses import dataclass, field, replace
 
 import numpy as np
 
+from mal_planner.initializer.approach import Approach, approach_for
 from mal_planner.initializer.collision import CollisionChecker
+from mal_planner.initializer.frame import RunwayFrame
 from mal_planner.initializer.planners import PathPlanner, PlanningFailed, make_planner, path_length
-from mal_planner.initializer.schedule import DEFAULT_MARGIN_S, LandingSchedule, make_schedule
+from mal_planner.initializer.schedule import DEFAULT_MARGIN_TURN_TIMES, LandingSchedule, make_schedule
 from mal_planner.initializer.smoothing import remove_repeats
 from mal_planner.initializer.timing import dubins_path_length, earliest_landing_times
+from mal_planner.scales import Scales
 from mal_planner.scenario import Aircraft, Scenario
+from mal_planner.trajectory import closest_approach
 
 log = logging.getLogger("mal_planner.initializer")
 
@@ -60,6 +68,11 @@ class InitialTrajectory:
     """Time at which the path crosses each gate's plane (interpolated), or None."""
     scheduled_time: float = float("nan")
     """The landing time of the schedule (what the optimizer is given); ``landing_time`` is the path's."""
+
+    def to_world(self, frame: RunwayFrame) -> InitialTrajectory:
+        """This trajectory, planned in ``frame``, in the world."""
+        return replace(self, waypoints=frame.to_world(self.waypoints), direct_path=frame.to_world(self.direct_path),
+                       waypoint=None if self.waypoint is None else frame.to_world(self.waypoint))
 
     def position_at(self, t: np.ndarray) -> np.ndarray:
         """Positions (n, 3) at times ``t`` (clipped to [0, landing_time])."""
@@ -114,6 +127,16 @@ def timed_path(path: np.ndarray, speed: float) -> np.ndarray:
     return np.concatenate([[0.0], np.cumsum(seg)]) / speed
 
 
+def timed_guess(path: np.ndarray, speed: float, landing_time: float, samples: int = 200) -> tuple[np.ndarray,
+                                                                                                  np.ndarray]:
+    """Times and positions of a path flown as the optimizer's guess flies it: stretched in time to land at
+    ``landing_time`` (see :mod:`mal_planner.landing.guess`), ``samples`` points evenly in time."""
+    times = timed_path(path, speed)
+    t = np.linspace(0.0, landing_time, samples)
+    scaled = times * (landing_time / times[-1]) if times[-1] > 0 else times
+    return t, np.column_stack([np.interp(t, scaled, path[:, k]) for k in range(3)])
+
+
 def gate_crossing_times(scenario: Scenario, path: np.ndarray, times: np.ndarray) -> dict[str, float | None]:
     """First time the path crosses each gate's plane in its direction of travel (linear interpolation)."""
     out: dict[str, float | None] = {}
@@ -129,60 +152,108 @@ def gate_crossing_times(scenario: Scenario, path: np.ndarray, times: np.ndarray)
     return out
 
 
+def aircraft_rng(seed: int | None, callsign: str, base: int) -> np.random.Generator:
+    """The random stream of one aircraft: the same for a callsign wherever it stands in the file.
+
+    ``base`` is drawn once per plan when ``seed`` is None (a random plan)."""
+    return np.random.default_rng([base if seed is None else seed, zlib.crc32(callsign.encode())])
+
+
 @dataclass
 class Sequencer:
     """Chapter 4's landing sequencer. ``planner``: a spec for :func:`make_planner` or a planner object.
 
-    ``runs_per_aircraft``: planner runs for each aircraft's shortest path; ``lattice_resolution`` (nm):
-    the waypoint lattice; ``max_waypoint_draws``: lattice draws per aircraft before giving up;
-    ``checker_margin`` / ``gate_band`` / ``gate_margin``: the collision checker's options.
+    It works in the runway frame (:class:`RunwayFrame`) with one random stream per aircraft, so a turned,
+    shifted or reordered copy of a scenario gets the same initial paths; its numbers are relative to the
+    scenario's turn radius L and turn time T (thesis: L = 0.302 nm, T = 7.55 s; the former absolute values in
+    brackets). ``runs_per_aircraft``: planner runs for each aircraft's shortest path; ``lattice_radii``: the
+    waypoint lattice (0.01 nm); ``max_waypoint_draws``: lattice draws per aircraft before giving up;
+    ``checker_margin`` / ``gate_band_radii`` (0.01 nm) / ``gate_margin_radii`` (0.005 nm): the collision
+    checker's options.
     """
 
     planner: str | PathPlanner = "multi-rrt"
     runs_per_aircraft: int = 3
-    lattice_resolution: float = 0.01
+    lattice_radii: float = 1.0 / 30.0
     max_waypoint_draws: int = 20000
     max_waypoint_plans: int = 400
     """Planner runs (two per full candidate) before settling for the candidate closest to the window."""
     checker_margin: float = 0.0
-    gate_band: float = 0.01
-    gate_margin: float = 0.005
+    gate_band_radii: float = 1.0 / 30.0
+    gate_margin_radii: float = 1.0 / 60.0
     planner_options: dict = field(default_factory=dict)
-    landing_margin_s: float = DEFAULT_MARGIN_S
-    """Free landing times are scheduled this long after the turn-aware earliest estimate."""
-    window_s: float = 5.0
-    """A stretched path is accepted when its flown time is within this of the scheduled time."""
+    landing_margin_turn_times: float = DEFAULT_MARGIN_TURN_TIMES
+    """Free landing times are scheduled this long after the turn-aware earliest estimate (5 s)."""
+    window_turn_times: float = 2.0 / 3.0
+    """A stretched path is accepted when its flown time is within this of the scheduled time (5 s)."""
+    guess_buffer_radii: float = 1.0
+    """A stretched path keeps the separation plus this from the paths stretched before (0.3 nm)."""
 
     def __post_init__(self) -> None:
         if isinstance(self.planner, str):
             self._planner = make_planner(self.planner, **self.planner_options)
         else:
             self._planner = self.planner
-        if self.runs_per_aircraft < 1 or self.lattice_resolution <= 0:
-            raise ValueError("runs_per_aircraft must be >= 1 and lattice_resolution > 0")
+        if self.runs_per_aircraft < 1 or self.lattice_radii <= 0:
+            raise ValueError("runs_per_aircraft must be >= 1 and lattice_radii > 0")
 
     def plan(self, scenario: Scenario, seed: int | None = None) -> InitialPlan:
         """Initial trajectories of all aircraft; raises :class:`PlanningFailed`."""
-        rng = np.random.default_rng(seed)
-        checker = CollisionChecker.from_scenario(scenario, self.checker_margin, self.gate_band, self.gate_margin)
-        goal = np.asarray(scenario.runway_state[:3], dtype=float)
+        frame = RunwayFrame.of(scenario)
+        plan = self._plan(frame.scenario(scenario), seed)
+        return replace(plan, trajectories=tuple(tr.to_world(frame) for tr in plan.trajectories))
+
+    def replan_one(self, scenario: Scenario, callsign: str, landing_time: float,
+                   traffic: Sequence[tuple[np.ndarray, np.ndarray]], seed: int | None = None,
+                   order: int = 1) -> InitialTrajectory:
+        """A new initial path of one aircraft for ``landing_time`` that keeps clear of ``traffic`` (the times and
+        positions of aircraft planned already, in the world): the sequential optimizer's first recovery when an
+        aircraft finds no plan against the plans of those before it."""
+        frame = RunwayFrame.of(scenario)
+        local = frame.scenario(scenario)
+        ac = local.aircraft_by_callsign(callsign)
+        rng = aircraft_rng(seed, callsign, int(np.random.SeedSequence().entropy) if seed is None else 0)
+        scales = Scales.of(local)
+        checker = CollisionChecker.from_scenario(local, self.checker_margin, scales.lengths(self.gate_band_radii),
+                                                 scales.lengths(self.gate_margin_radii))
+        route = approach_for(local, ac, checker)
+        direct = self._join(checker, self._shortest(checker, ac.position, route.first, rng), route, rng)
+        seen = [(t, frame.points(pos)) for t, pos in traffic]
+        path, wp = self._stretch(local, checker, ac, route, direct, landing_time, rng, scales, seen, force=True)
+        return self._trajectory(local, ac, order, path, wp, direct, landing_time).to_world(frame)
+
+    def _plan(self, scenario: Scenario, seed: int | None) -> InitialPlan:
+        """:meth:`plan` in the runway frame."""
+        base = int(np.random.SeedSequence().entropy) if seed is None else 0
+        rngs = {ac.callsign: aircraft_rng(seed, ac.callsign, base) for ac in scenario.aircraft}
+        scales = Scales.of(scenario)
+        checker = CollisionChecker.from_scenario(scenario, self.checker_margin, scales.lengths(self.gate_band_radii),
+                                                 scales.lengths(self.gate_margin_radii))
         t_all = time.perf_counter()
         timings: dict[str, float] = {}
         direct: dict[str, np.ndarray] = {}
+        routes: dict[str, Approach] = {}
         for ac in scenario.aircraft:
             t0 = time.perf_counter()
-            direct[ac.callsign] = self._shortest(checker, ac.position, goal, rng)
+            rng = rngs[ac.callsign]
+            routes[ac.callsign] = route = approach_for(scenario, ac, checker)
+            direct[ac.callsign] = self._join(checker, self._shortest(checker, ac.position, route.first, rng), route,
+                                             rng)
             timings[ac.callsign] = time.perf_counter() - t0
             log.info("%s: shortest path %.3f nm (%d points)", ac.callsign, path_length(direct[ac.callsign]),
                      len(direct[ac.callsign]))
-        schedule = make_schedule(scenario, earliest_landing_times(scenario, direct), self.landing_margin_s)
+        schedule = make_schedule(scenario, earliest_landing_times(scenario, direct),
+                                 scales.seconds(self.landing_margin_turn_times))
         log.info("schedule: %s", ", ".join(f"{cs} {schedule.times[cs]:.1f} s" for cs in schedule.order))
         trajectories: list[InitialTrajectory] = []
+        traffic: list[tuple[np.ndarray, np.ndarray]] = []  # the timed paths of the aircraft stretched before
         for k, cs in enumerate(schedule.order, start=1):
             ac = scenario.aircraft_by_callsign(cs)
             t0 = time.perf_counter()
-            path, wp = self._stretch(scenario, checker, ac, direct[cs], schedule.times[cs], rng)
+            path, wp = self._stretch(scenario, checker, ac, routes[cs], direct[cs], schedule.times[cs], rngs[cs],
+                                     scales, traffic)
             tr = self._trajectory(scenario, ac, k, path, wp, direct[cs], schedule.times[cs])
+            traffic.append(timed_guess(path, ac.speed, schedule.times[cs]))
             timings[cs] += time.perf_counter() - t0
             log.info("%s: lands %d%s at %.1f s (path %.3f nm, %.1f s%s)", cs, k,
                      {1: "st", 2: "nd", 3: "rd"}.get(k, "th"), tr.scheduled_time, tr.path_length,
@@ -208,33 +279,65 @@ class Sequencer:
             raise PlanningFailed(errors[-1])
         return best
 
-    def _stretch(self, scenario: Scenario, checker: CollisionChecker, ac: Aircraft, direct_path: np.ndarray,
-                 scheduled: float, rng: np.random.Generator) -> tuple[np.ndarray, np.ndarray | None]:
-        """The direct path if it suits ``scheduled``, else a path through a waypoint that does."""
+    def _join(self, checker: CollisionChecker, to_route: np.ndarray, route: Approach,
+              rng: np.random.Generator) -> np.ndarray:
+        """A path to the route's first point, then the route; a leg of the route that is not free (e.g. from a
+        gate's exit to the final approach fix, past a no-fly zone) is planned."""
+        parts = [np.asarray(to_route, float)]
+        for a, b in itertools.pairwise(route.points):
+            parts.append(np.array([b]) if checker.segment_free(a, b) else self._planner.plan(checker, a, b, rng)[1:])
+        return remove_repeats(np.vstack(parts))
+
+    def _stretch(self, scenario: Scenario, checker: CollisionChecker, ac: Aircraft, route: Approach,
+                 direct_path: np.ndarray, scheduled: float, rng: np.random.Generator, scales: Scales,
+                 traffic: Sequence[tuple[np.ndarray, np.ndarray]] = (), force: bool = False
+                 ) -> tuple[np.ndarray, np.ndarray | None]:
+        """The direct path if it suits ``scheduled``, else a path through a waypoint (before the route) that
+        does. Waypoints that reach the route against its direction (an aircraft would have to turn back onto
+        it) are taken only in the second half of the draws, as are those breaking the thesis's rule.
+
+        Paths are also kept apart from the ``traffic`` (the timed paths of the aircraft stretched before): a
+        path that comes within the separation plus ``guess_buffer_radii`` of one of them is taken only when no
+        clear one is found, the clearest first. The thesis's sequencer leaves separation to the optimizer; at
+        a terminal area's size, a detour that crosses the stream (an aircraft held back 4 minutes flew across
+        the path of one converging on the same gate) left no feasible plan for the optimizer. ``force``: look
+        for a waypoint even where the direct path would do (it did not clear the traffic).
+        """
         v = ac.speed
+        need = scenario.separation_nm + scales.lengths(self.guess_buffer_radii)
+
+        def clearance(path: np.ndarray) -> float:
+            t, pos = timed_guess(path, v, scheduled)
+            return min((closest_approach(t, pos, *other) for other in traffic), default=math.inf)
         dubins, straight = dubins_path_length(scenario, ac)
         turns = max(dubins - straight, 0.0)  # what the turns add to the polyline's length
+        window, margin = scales.seconds(self.window_turn_times), scales.seconds(self.landing_margin_turn_times)
         target = scheduled * v - turns
-        lo_len, hi_len = target - self.window_s * v, target + self.window_s * v
+        lo_len, hi_len = target - window * v, target + window * v
         direct_len = path_length(direct_path)
-        if direct_len >= lo_len - self.landing_margin_s * v:  # the schedule's margin needs no detour
+        direct_clear = clearance(direct_path)
+        if direct_len >= lo_len - margin * v and not (force and direct_clear < need):  # no detour needed
             if direct_len > hi_len:
                 log.warning("%s: the direct path needs %.1f s, more than the scheduled %.1f s; kept",
                             ac.callsign, (direct_len + turns) / v, scheduled)
+            if direct_clear < need:
+                log.info("%s: the direct path comes %.2f nm close to an earlier aircraft's", ac.callsign,
+                         direct_clear)
             return direct_path, None
-        start, goal = ac.position, np.asarray(scenario.runway_state[:3], dtype=float)
-        res = self.lattice_resolution
+        start, goal, tail = ac.position, route.first, route.length
+        onto = (route.points[1] - goal) if len(route.points) > 1 else np.zeros(3)
+        res = scales.lengths(self.lattice_radii)
         lo_i = np.ceil((scenario.airspace[:, 0] + 1e-12) / res).astype(np.int64) + 1
         hi_i = np.floor((scenario.airspace[:, 1] - 1e-12) / res).astype(np.int64) - 1
         side0 = [np.sign(g.signed_distance(start)) for g in scenario.gates]
         tried: set[tuple[int, int, int]] = set()
         planned = 0
-        best: tuple[float, np.ndarray, np.ndarray] | None = None  # (miss of the window, path, waypoint)
+        best: tuple[tuple[float, float, float], np.ndarray, np.ndarray] | None = None  # (rank, path, waypoint)
         for draw in range(self.max_waypoint_draws):
             if planned >= self.max_waypoint_plans:
                 break
-            strict = planned < self.max_waypoint_plans // 2  # the thesis's "first leg > half" rule, then not
-            point = _ellipse_point(start, goal, target, scenario.airspace, rng) if draw % 4 else None
+            strict = planned < self.max_waypoint_plans // 2 and draw < self.max_waypoint_draws // 2
+            point = _ellipse_point(start, goal, target - tail, scenario.airspace, rng) if draw % 4 else None
             if point is None:
                 key = tuple(int(i) for i in rng.integers(lo_i, hi_i + 1))
             else:
@@ -243,37 +346,47 @@ class Sequencer:
                 continue
             tried.add(key)
             wp = np.asarray(key, dtype=float) * res
-            d1, d2 = np.linalg.norm(wp - start), np.linalg.norm(goal - wp)
+            d1, d2 = np.linalg.norm(wp - start), np.linalg.norm(goal - wp) + tail
             if d1 + d2 > hi_len or d1 + d2 < direct_len - 1e-9:  # the straight-line bound already fails
                 continue
-            if strict and d1 <= d2:
+            if strict and (d1 <= d2 or float(np.dot(goal - wp, onto)) < 0.0):
                 continue
             if any(np.sign(g.signed_distance(wp)) != s for g, s in zip(scenario.gates, side0, strict=True)):
                 continue
             if not checker.point_free(wp):
                 continue
+            if strict and traffic and clearance(np.vstack([start, wp, route.points])) < need:
+                continue  # the straight legs already come too close: not worth planning them
             try:
                 planned += 1
                 leg1 = self._planner.plan(checker, start, wp, rng)
                 leg1_len = path_length(leg1)
                 too_long = leg1_len + d2 - hi_len  # a lower bound of how far past the window it lands
-                if too_long > 0.0 and best is not None and too_long >= best[0]:
+                if too_long > 0.0 and best is not None and too_long >= best[0][0]:
                     continue
                 planned += 1
-                leg2 = self._planner.plan(checker, wp, goal, rng)
+                leg2 = self._join(checker, self._planner.plan(checker, wp, goal, rng), route, rng)
             except PlanningFailed:
                 continue
             total = leg1_len + path_length(leg2)
-            if lo_len <= total <= hi_len:
-                log.debug("%s: waypoint after %d draws, %d planned", ac.callsign, len(tried), planned)
-                return remove_repeats(np.vstack([leg1, leg2])), wp
+            path = remove_repeats(np.vstack([leg1, leg2]))
             miss = max(lo_len - total, total - hi_len, 0.0)
-            if best is None or miss < best[0]:
-                best = (miss, np.vstack([leg1, leg2]), wp)
+            clear = clearance(path) if miss == 0.0 else 0.0
+            if miss == 0.0 and clear >= need:
+                log.debug("%s: waypoint after %d draws, %d planned", ac.callsign, len(tried), planned)
+                return path, wp
+            rank = (miss, -min(clear, need), 0.0)
+            if best is None or rank < best[0]:
+                best = (rank, path, wp)
         if best is not None:
-            log.warning("%s: no waypoint met the scheduled landing time within %d planner runs; using the closest "
-                        "(%.1f s off)", ac.callsign, planned, best[0] / v)
-            return remove_repeats(best[1]), best[2]
+            miss, clear = best[0][0], -best[0][1]
+            if miss > 0.0:
+                log.warning("%s: no waypoint met the scheduled landing time within %d planner runs; using the "
+                            "closest (%.1f s off)", ac.callsign, planned, miss / v)
+            else:
+                log.info("%s: no waypoint kept %.2f nm from the earlier aircraft within %d planner runs; using the "
+                         "clearest (%.2f nm)", ac.callsign, need, planned, clear)
+            return best[1], best[2]
         log.warning("%s: no waypoint found for a %.1f s landing (%d tried); the direct path is kept", ac.callsign,
                     scheduled, len(tried))
         return direct_path, None

@@ -21,17 +21,11 @@ from collections.abc import Mapping
 import numpy as np
 
 from mal_planner.obstacles import Gate
+from mal_planner.scales import level_turn_radius
 from mal_planner.scenario import Aircraft, Scenario
 
 HOLE_SAMPLES = 9
 """Points across the hole tried for the gate passage (the best one is kept)."""
-
-
-def level_turn_radius(aircraft: Aircraft) -> float:
-    """Radius (nm) of a level turn at the bank limit (capped by the horizontal load-factor limit)."""
-    lim = aircraft.limits
-    n_h = min(math.tan(lim.bank_angle_max) * max(min(1.0, lim.n_v[1]), 1e-9), lim.n_h[1], -lim.n_h[0])
-    return aircraft.speed**2 / (aircraft.dynamics.gravity * n_h)
 
 
 def dubins_length(start: np.ndarray, start_heading: float, goal: np.ndarray, goal_heading: float,

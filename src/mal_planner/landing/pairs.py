@@ -4,8 +4,8 @@ Every phase carries all aircraft airborne in it, so constraining every pair in e
 O(N^3) pair constraints, and each couples two aircraft's states at every collocation point: the KKT
 factorisation then fills in across all aircraft (measured at 10 aircraft: 88 % of the IPOPT time, see
 the README's profile). Most pairs never come near each other. A pair is constrained in a phase only if the
-initial guess brings it within ``near_nm`` of the separation around that phase's time span (widened by
-``slack_s``); after each solve, any unconstrained pair that came within ``recheck_nm`` of the separation
+initial guess brings it within ``near`` of the separation around that phase's time span (widened by
+``slack``); after each solve, any unconstrained pair that came within ``recheck`` of the separation
 is added where it did and the problem is solved again (warm). The independent verification still checks
 every pair, so screening can cost a re-solve but never a missed conflict.
 """
@@ -20,6 +20,7 @@ import numpy as np
 
 from mal_planner.landing.guess import AircraftGuess
 from mal_planner.landing.layout import PhaseLayout
+from mal_planner.scales import Scales
 
 PhasePairs = list[set[tuple[int, int]]]
 """Per phase, the constrained pairs (a, b), a < b, as landing-order indices."""
@@ -27,14 +28,30 @@ PhasePairs = list[set[tuple[int, int]]]
 
 @dataclass(frozen=True)
 class PairScreen:
-    near_nm: float = 1.0
-    """A pair is constrained where the guess brings it within the separation plus this."""
-    slack_s: float = 20.0
-    """The phase's guessed time span is widened by this on both sides (events move in the solve)."""
-    recheck_nm: float = 0.2
-    """After a solve, unconstrained pairs closer than the separation plus this are added."""
+    """Distances in turn radii L and times in turn times T of the scenario (:class:`mal_planner.scales.Scales`);
+    the thesis values they were tuned as are given in brackets."""
+
+    near: float = 10.0 / 3.0
+    """A pair is constrained where the guess brings it within the separation plus this (1 nm)."""
+    slack: float = 2.5
+    """The phase's guessed time span is widened by this on both sides, events move in the solve (20 s)."""
+    recheck: float = 2.0 / 3.0
+    """After a solve, unconstrained pairs closer than the separation plus this are added (0.2 nm)."""
     max_rounds: int = 4
     """Re-solves with added pairs, at most."""
+
+    def near_nm(self, scales: Scales) -> float:
+        return scales.lengths(self.near)
+
+    def slack_s(self, scales: Scales) -> float:
+        return scales.seconds(self.slack)
+
+    def recheck_nm(self, scales: Scales) -> float:
+        return scales.lengths(self.recheck)
+
+
+SAMPLES_PER_TURN_TIME = 7.5
+"""Guesses and solutions are compared this often per turn time (thesis: every second)."""
 
 
 def all_pairs(layout: PhaseLayout) -> PhasePairs:
@@ -42,19 +59,21 @@ def all_pairs(layout: PhaseLayout) -> PhasePairs:
     return [set(itertools.combinations(layout.airborne(k), 2)) for k in range(layout.n_phases)]
 
 
-def screen_pairs(layout: PhaseLayout, guesses: Sequence[AircraftGuess], separation_nm: float,
-                 screen: PairScreen, dt: float = 1.0) -> PhasePairs:
+def screen_pairs(layout: PhaseLayout, guesses: Sequence[AircraftGuess], scales: Scales,
+                 screen: PairScreen) -> PhasePairs:
     """The pairs each phase constrains, from the guessed trajectories (``guesses`` in landing order)."""
+    dt = scales.seconds(1.0 / SAMPLES_PER_TURN_TIME)
     horizon = max(g.landing_time for g in guesses)
     t = np.arange(0.0, horizon + dt, dt)
     pos = np.stack([np.column_stack([np.interp(t, g.t, g.states[:, k]) for k in range(3)]) for g in guesses])
     flying = np.stack([t <= g.landing_time + dt for g in guesses])
     starts = [0.0] + [ev.time_guess for ev in layout.events[:-1]]
     ends = [ev.time_guess for ev in layout.events]
-    near = separation_nm + screen.near_nm
+    near = scales.separation_nm + screen.near_nm(scales)
+    slack = screen.slack_s(scales)
     out: PhasePairs = []
     for k in range(layout.n_phases):
-        window = (t >= starts[k] - screen.slack_s) & (t <= ends[k] + screen.slack_s)
+        window = (t >= starts[k] - slack) & (t <= ends[k] + slack)
         pairs = set()
         for a, b in itertools.combinations(layout.airborne(k), 2):
             both = window & flying[a] & flying[b]

@@ -26,6 +26,7 @@ from mal_planner.landing.layout import PhaseLayout
 from mal_planner.landing.pairs import PhasePairs, all_pairs
 from mal_planner.obstacles import Gate
 from mal_planner.ocp import Phase, PhaseGuess, PhaseMesh, Problem
+from mal_planner.scales import Scales
 from mal_planner.scenario import Aircraft, Scenario
 
 GAMMA_BOUND = math.radians(30.0)
@@ -39,26 +40,47 @@ class SafetyMargins:
     Path constraints hold at the collocation points; between them, and after re-integrating the published
     controls, a trajectory that rides a constraint can cross it by a little. These margins keep that
     little on the safe side; where it is not enough the verification finds it and the mesh is refined.
+    Lengths are in units of the scenario's path accuracy (:attr:`mal_planner.scales.Scales.accuracy_nm`,
+    the verification's largest deviation between the published and the flown path: L / 60, 0.005 nm in the
+    thesis, where these were tuned in nm); :meth:`in_nm` resolves them for one scenario.
     """
 
-    separation_nm: float = 0.01
-    """Added to the minimum separation (about 18 m: twice the verification's 0.005 nm tolerance between the
-    published and the flown path, so that the published paths keep the separation as well)."""
-    obstacle_nm: float = 0.01
-    """Obstacles are inflated by this in every semi-axis (about 18 m)."""
+    separation: float = 2.0
+    """Added to the minimum separation: each of the two published paths may be the accuracy off the flown one
+    (thesis: 0.01 nm, about 18 m)."""
+    obstacle: float = 2.0
+    """Obstacles are inflated by this in every semi-axis (thesis: 0.01 nm)."""
     clearance: float = 1e-4
-    """Lower bound of ln ||r||_p of the inflated obstacles at the collocation points."""
-    gate_nm: float = 0.002
+    """Lower bound of ln ||r||_p of the inflated obstacles at the collocation points (dimensionless)."""
+    gate: float = 0.4
     """The gate event stays this far inside the hole's edges, beyond the obstacle margin (the wall pieces
-    are rounded p-norm shapes)."""
-    airspace_nm: float = 1e-3
-    """The airspace is shrunk by this (about 2 m); the runway threshold is crossed this high above the
-    floor (real approaches cross it at about 15 m), so the flown path never touches the ground early."""
+    are rounded p-norm shapes; thesis: 0.002 nm)."""
+    airspace: float = 0.2
+    """The airspace is shrunk by this (thesis: 0.001 nm, about 2 m); the runway threshold is crossed this high
+    above the floor (real approaches cross it at about 15 m), so the flown path never touches the ground early."""
     bank_rad: float = math.radians(0.5)
     """Taken off the bank-angle limit (the control interpolant overshoots a riding limit between its
     collocation points by up to about this; campaigns measured 0.2 deg past a 0.25 deg margin)."""
     load_factor: float = 1e-3
-    """Taken off both ends of the load-factor limits."""
+    """Taken off both ends of the load-factor limits (dimensionless)."""
+
+    def in_nm(self, scales: Scales) -> Margins:
+        unit = scales.accuracy_nm
+        return Margins(self.separation * unit, self.obstacle * unit, self.clearance, self.gate * unit,
+                       self.airspace * unit, self.bank_rad, self.load_factor)
+
+
+@dataclass(frozen=True)
+class Margins:
+    """:class:`SafetyMargins` of one scenario, lengths in nm."""
+
+    separation_nm: float
+    obstacle_nm: float
+    clearance: float
+    gate_nm: float
+    airspace_nm: float
+    bank_rad: float
+    load_factor: float
 
     @property
     def hole_nm(self) -> float:
@@ -101,24 +123,30 @@ def _wrap_near(target: float, reference: float) -> float:
 def build_landing_problem(scenario: Scenario, layout: PhaseLayout, guesses: list[AircraftGuess],
                           fixed_landing_times: bool = True, mesh: PhaseMesh | None = None,
                           horizon: float | None = None, margins: SafetyMargins | None = None,
-                          segment_seconds: float | None = None, pairs: PhasePairs | None = None,
-                          intruders: Sequence[Intruder] = (), earliest_landing: float | None = None) -> LandingProblem:
+                          segment_turn_times: float | None = None, pairs: PhasePairs | None = None,
+                          intruders: Sequence[Intruder] = (), earliest_landing: float | None = None,
+                          scales: Scales | None = None) -> LandingProblem:
     """Assemble the OCP; ``guesses`` are in landing order and place each phase's initial guess.
 
-    ``margins`` (see :class:`SafetyMargins`) make every constraint a little stricter than the scenario's.
-    ``segment_seconds`` scales the initial mesh to the guessed phase durations: about one segment per that
-    many seconds, at most ``mesh``'s segment count (None: ``mesh`` for every phase).
+    ``scales`` (default: the scenario's own, :meth:`Scales.of`; a subproblem of one aircraft gets the whole
+    scenario's) scale the NLP: positions in turn radii L, times in turn times T, separations in the minimum
+    separation, so that every scenario reaches IPOPT with numbers of the thesis's order. ``margins`` (see
+    :class:`SafetyMargins`) make every constraint a little stricter than the scenario's.
+    ``segment_turn_times`` scales the initial mesh to the guessed phase durations: about one segment per that
+    many turn times (``mesh``'s degree); None: ``mesh`` for every phase.
     ``pairs`` are the pairs each phase keeps separated (see :mod:`mal_planner.landing.pairs`; None: all).
     ``intruders`` are aircraft with fixed trajectories (planned before) that every aircraft keeps separated
     from; with free landing times, ``earliest_landing`` bounds the first landing from below.
     """
     n = len(layout.callsigns)
+    scales = scales or Scales.of(scenario)
     aircraft = [scenario.aircraft_by_callsign(cs) for cs in layout.callsigns]
     gate = scenario.gates[0] if scenario.gates else None
-    horizon = horizon or 2.0 * max(g.landing_time for g in guesses) + 60.0
+    horizon = horizon or 2.0 * max(g.landing_time for g in guesses) + scales.seconds(HORIZON_TURN_TIMES)
     mesh = mesh or PhaseMesh.uniform(4, 6)
     event_times = [ev.time_guess for ev in layout.events]
-    ctx = _Context(scenario, layout, aircraft, guesses, gate, horizon, margins or SafetyMargins(), tuple(intruders))
+    ctx = _Context(scenario, layout, aircraft, guesses, gate, horizon, (margins or SafetyMargins()).in_nm(scales),
+                   scales, tuple(intruders))
     pairs = pairs if pairs is not None else all_pairs(layout)
     phases: list[Phase] = []
     members: list[list[int]] = []
@@ -126,7 +154,8 @@ def build_landing_problem(scenario: Scenario, layout: PhaseLayout, guesses: list
         who = layout.airborne(k)
         members.append(who)
         span = (event_times[k - 1] if k else 0.0, event_times[k])
-        phase_mesh = mesh if segment_seconds is None else _scaled_mesh(mesh, span[1] - span[0], segment_seconds)
+        phase_mesh = mesh if segment_turn_times is None else _scaled_mesh(
+            mesh, span[1] - span[0], scales.seconds(segment_turn_times))
         phases.append(_phase(ctx, k, who, phase_mesh, span, sorted(pairs[k])))
     n_states = len(STATE_NAMES)
 
@@ -165,8 +194,11 @@ def build_landing_problem(scenario: Scenario, layout: PhaseLayout, guesses: list
             return -sum(E[layout.event_index("gate", i)].tf for i in gated) if gated else 0.0
         return sum(E[layout.event_index("land", i)].tf for i in range(n))
 
+    length, seconds = scales.length_nm, scales.time_s
+    state_scale = [length, length, length, 1.0, 1.0]
     problem = Problem(phases=phases, n_params=n * n_states + n, mayer=mayer, events=events,
-                      events_lb=lb, events_ub=ub)
+                      events_lb=lb, events_ub=ub, objective_scale=seconds,
+                      events_scale=state_scale * n + [seconds] * (len(lb) - n * n_states))
     for k in range(layout.n_phases - 1):
         linked = []
         for i in members[k + 1]:
@@ -177,8 +209,12 @@ def build_landing_problem(scenario: Scenario, layout: PhaseLayout, guesses: list
 
 
 MIN_DEGREE = 3
+HORIZON_TURN_TIMES = 8.0
+"""The phases' times are bounded by twice the last guessed landing plus this many turn times (thesis: 60 s)."""
+MIN_DURATION_TURN_TIMES = 1e-3
+"""A phase lasts at least this many turn times (thesis: 0.01 s)."""
 LANDED_DISTANCE2 = 1e2
-"""The squared distance (nm^2) a separation constraint sees once the intruder has landed: far away."""
+"""The squared distance (in separations^2) a separation constraint sees once the intruder has landed: far away."""
 
 
 def _scaled_mesh(mesh: PhaseMesh, duration: float, segment_seconds: float) -> PhaseMesh:
@@ -186,7 +222,7 @@ def _scaled_mesh(mesh: PhaseMesh, duration: float, segment_seconds: float) -> Ph
     in proportion (at least 3). Every phase carries every airborne aircraft, and most of the 2N phases of a
     long stream are short: full-degree segments there made the NLP grow as N^2 x the degree."""
     degree = max(mesh.degrees)
-    segments = int(np.clip(round(duration / segment_seconds), 1, mesh.n_segments))
+    segments = max(1, int(round(duration / segment_seconds)))
     if duration < segment_seconds:
         degree = int(np.clip(math.ceil(degree * duration / segment_seconds), MIN_DEGREE, degree))
     return PhaseMesh.uniform(segments, degree)
@@ -203,7 +239,8 @@ class _Context:
     guesses: list[AircraftGuess]
     gate: Gate | None
     horizon: float
-    margins: SafetyMargins
+    margins: Margins
+    scales: Scales
     intruders: tuple[Intruder, ...] = ()
 
 
@@ -218,7 +255,8 @@ class Intruder:
     """It has landed after this time."""
 
     @classmethod
-    def from_trajectory(cls, t: np.ndarray, positions: np.ndarray, callsign: str, dt: float = 0.5) -> Intruder:
+    def from_trajectory(cls, t: np.ndarray, positions: np.ndarray, callsign: str, dt: float) -> Intruder:
+        """A B-spline through the path sampled every ``dt`` seconds."""
         grid = np.append(np.arange(t[0], t[-1] - 0.5 * dt, dt), t[-1])
         values = np.column_stack([np.interp(grid, t, positions[:, k]) for k in range(3)])
         return cls(callsign, ca.interpolant(f"{callsign}_path", "bspline", [grid], values.ravel()), float(t[-1]))
@@ -229,7 +267,7 @@ def _phase(ctx: _Context, k: int, who: list[int], mesh: PhaseMesh, guess_span: t
     """Phase ``k`` with the aircraft ``who`` (landing-order indices) airborne in it, keeping the pairs
     ``separated`` (landing-order indices) apart."""
     scenario, layout, aircraft, guesses, gate = ctx.scenario, ctx.layout, ctx.aircraft, ctx.guesses, ctx.gate
-    horizon, margins = ctx.horizon, ctx.margins
+    horizon, margins, scales = ctx.horizon, ctx.margins, ctx.scales
     space_lo, space_hi = scenario.airspace[:, 0] + margins.airspace_nm, scenario.airspace[:, 1] - margins.airspace_nm
     obstacles = [ob.inflated(margins.obstacle_nm) for ob in scenario.obstacles]
     states, controls = [], []
@@ -276,6 +314,7 @@ def _phase(ctx: _Context, k: int, who: list[int], mesh: PhaseMesh, guess_span: t
         for j in range(len(who))
     ]
     pairs = [(who.index(a), who.index(b)) for a, b in separated]
+    sep2 = (scenario.separation_nm + margins.separation_nm) ** 2
 
     def dynamics(x, u, t, p):
         return ca.vertcat(*[m.rhs(x[5 * j:5 * j + 5], u[2 * j:2 * j + 2]) for j, m in enumerate(models)])
@@ -294,23 +333,28 @@ def _phase(ctx: _Context, k: int, who: list[int], mesh: PhaseMesh, guess_span: t
             # ln(F)/p = ln of the p-norm: the thesis's constraint divided by p, the same feasible set with
             # p times smaller derivatives (p = 50 for the wall).
             out += [ob.log_pnorm(px, py, pz) / ob.p for ob in relevant[j]]
-            out.append(bank_limit_residuals(u[2 * j], u[2 * j + 1], limits[j].bank_angle_max - margins.bank_rad))
         for a, b in pairs:
             d = x[5 * a:5 * a + 3] - x[5 * b:5 * b + 3]
             out.append(ca.sumsqr(d))
         for j in range(n_ac):
             for other in ctx.intruders:  # once it has landed, an intruder no longer counts
                 d2 = ca.sumsqr(x[5 * j:5 * j + 3] - other.position(t))
-                out.append(ca.if_else(t <= other.t_end, d2, LANDED_DISTANCE2))
+                out.append(ca.if_else(t <= other.t_end, d2, LANDED_DISTANCE2 * sep2))
         return ca.vertcat(*out)
+
+    def bank(u):  # linear in the controls: enforced at the collocation points and between them
+        return ca.vertcat(*[bank_limit_residuals(u[2 * j], u[2 * j + 1], limits[j].bank_angle_max - margins.bank_rad)
+                            for j in range(n_ac)])
 
     p_lb, p_ub = [], []
     for j in range(n_ac):
-        p_lb += [margins.clearance] * len(relevant[j]) + [-math.inf, -math.inf]
-        p_ub += [math.inf] * len(relevant[j]) + [0.0, 0.0]
-    sep2 = (scenario.separation_nm + margins.separation_nm) ** 2
-    p_lb += [sep2] * (len(pairs) + n_ac * len(ctx.intruders))
-    p_ub += [math.inf] * (len(pairs) + n_ac * len(ctx.intruders))
+        p_lb += [margins.clearance] * len(relevant[j])
+        p_ub += [math.inf] * len(relevant[j])
+    n_sep = len(pairs) + n_ac * len(ctx.intruders)
+    p_lb += [sep2] * n_sep
+    p_ub += [math.inf] * n_sep
+    # Obstacle rows are dimensionless already; squared distances are scaled by the squared separation.
+    p_scale = [1.0] * (len(p_lb) - n_sep) + [sep2] * n_sep
 
     return Phase(
         name=layout.phase_name(k),
@@ -334,10 +378,15 @@ def _phase(ctx: _Context, k: int, who: list[int], mesh: PhaseMesh, guess_span: t
         if k == 0 else None,
         t0_bounds=(0.0, 0.0) if k == 0 else (0.0, horizon),
         tf_bounds=(0.0, horizon),
-        min_duration=1e-2,
+        min_duration=scales.seconds(MIN_DURATION_TURN_TIMES),
         guess=phase_guess(who, aircraft, guesses, guess_span),
         mesh=mesh,
         bound_controls_between=True,
+        control_path=bank,
+        control_path_ub=0.0,
+        state_scale=[v for _ in who for v in (scales.length_nm, scales.length_nm, scales.length_nm, 1.0, 1.0)],
+        time_scale=scales.time_s,
+        path_scale=p_scale,
     )
 
 

@@ -17,42 +17,70 @@ from __future__ import annotations
 
 import logging
 import time
-from collections.abc import Sequence
-from dataclasses import replace
+from collections.abc import Callable, Sequence
+from dataclasses import dataclass, replace
 
 import numpy as np
 
 from mal_planner.landing.guess import AircraftGuess
-from mal_planner.landing.pairs import PairScreen
+from mal_planner.landing.pairs import SAMPLES_PER_TURN_TIME, PairScreen
 from mal_planner.landing.problem import Intruder, phase_guesses
-from mal_planner.landing.solve import LandingOptimizer, LandingOptions, LandingResult, layout_for, split_segments
+from mal_planner.landing.solve import (
+    REFINE_PAD_TURN_TIMES,
+    LandingOptimizer,
+    LandingOptions,
+    LandingResult,
+    layout_for,
+    split_segments,
+)
+from mal_planner.scales import Scales
 from mal_planner.scenario import Scenario
+from mal_planner.trajectory import closest_approach
 
 log = logging.getLogger("mal_planner.optimizer")
 
 
-def closest_approach(a_t: np.ndarray, a_pos: np.ndarray, b_t: np.ndarray, b_pos: np.ndarray) -> float:
-    """Smallest distance (nm) between two sampled paths while both fly, on a's sample times."""
-    keep = a_t <= min(a_t[-1], b_t[-1])
-    if not keep.any():
-        return float("inf")
-    other = np.column_stack([np.interp(a_t[keep], b_t, b_pos[:, k]) for k in range(3)])
-    return float(np.linalg.norm(a_pos[keep] - other, axis=1).min())
+Reguess = Callable[[Scenario, str, float, Sequence[tuple[np.ndarray, np.ndarray]], int], "AircraftGuess | None"]
+"""(scenario, callsign, landing time, traffic, attempt) -> a new guess of that aircraft that keeps clear of the
+traffic (times and positions of the aircraft planned before it), or None (the initializer's
+:meth:`~mal_planner.initializer.sequencer.Sequencer.replan_one`, given by the pipeline)."""
+
+RECOVERIES = ("another guess", "later landing", "swap with the previous")
+"""What the sequential strategy tries, in this order, when an aircraft finds no plan against the plans of those
+before it (the joint NLP of everyone is the pipeline's last resort):
+
+* *another guess*: the initializer stretches the aircraft's path anew, clear of the plans made so far (the
+  first guess only kept clear of the others' guesses);
+* *later landing*: where the schedule (not the scenario) set its landing time, the optimizer may land it later
+  (the aircraft after it move back by as much);
+* *swap with the previous*: it takes the previous aircraft's landing slot, and that one is planned after it."""
+
+
+@dataclass
+class Recovery:
+    callsign: str
+    name: str
+    success: bool
+    seconds: float
 
 
 class SequentialOptimizer:
     """The :class:`LandingOptimizer` interface (solve, refine_at, accepts) over per-aircraft subproblems."""
 
-    def __init__(self, scenario: Scenario, guesses: list[AircraftGuess], options: LandingOptions) -> None:
+    def __init__(self, scenario: Scenario, guesses: list[AircraftGuess], options: LandingOptions,
+                 reguess: Reguess | None = None) -> None:
         self.scenario = scenario
         self.options = options
         self.layout = layout_for(scenario, guesses)
+        self.scales = Scales.of(scenario)
+        """The whole scenario's scales: every aircraft's subproblem is scaled and margined alike."""
+        self.reguess = reguess
         self._guesses = guesses
         self.setup_time = 0.0
 
     @property
     def screen(self) -> PairScreen:
-        return self.options.pair_screen or PairScreen(near_nm=float("inf"), recheck_nm=float("inf"))
+        return self.options.pair_screen or PairScreen(near=float("inf"), recheck=float("inf"))
 
     def accepts(self, scenario: Scenario, guesses: list[AircraftGuess]) -> bool:
         """Same obstacles, gates and landing order: each aircraft's own NLP (whose events may have moved
@@ -75,28 +103,77 @@ class SequentialOptimizer:
         that follows checks every pair again."""
         scenario = scenario or self.scenario
         guesses = [_guess_from(part) for part in previous.parts]
-        meshes = []
-        for part in previous.parts:
-            meshes.append([split_segments(mesh, phase.t0, phase.tf, times)
-                           for phase, mesh in zip(part.solution.phases, part.solution.meshes, strict=True)])
+        pad = self.scales.seconds(REFINE_PAD_TURN_TIMES)
+        meshes = {part.trajectories[0].callsign: [split_segments(mesh, phase.t0, phase.tf, times, pad)
+                                                  for phase, mesh in zip(part.solution.phases, part.solution.meshes,
+                                                                         strict=True)]
+                  for part in previous.parts}
+        self.layout = layout_for(scenario, guesses)
         result = self._solve_all(scenario, guesses, list(previous.parts), meshes, deadline, only=callsigns)
         result.solve_time += previous.solve_time
         result.build_time += previous.build_time
         result.nlp_iterations += previous.nlp_iterations
         result.mesh_history = previous.mesh_history + result.mesh_history
+        result.recoveries = previous.recoveries + result.recoveries
         return result
 
+    def _solve_one(self, scenario: Scenario, guess: AircraftGuess, flown: list[tuple[str, np.ndarray, np.ndarray]],
+                   before: LandingResult | None, mesh, deadline, earliest: float | None,
+                   options: LandingOptions) -> LandingResult:
+        """One aircraft's plan against the plans ``flown`` before it (those its guess brings near, then any its
+        plan comes close to)."""
+        scales, screen, sep = self.scales, self.screen, scenario.separation_nm
+        intruder_dt = scales.seconds(0.5 / SAMPLES_PER_TURN_TIME)
+        sub = replace(scenario, aircraft=(scenario.aircraft_by_callsign(guess.callsign),))
+        near = [k for k, (_, t, pos) in enumerate(flown)
+                if _guess_distance(guess, t, pos, scales) < sep + screen.near_nm(scales)]
+        part: LandingResult | None = None
+        for _ in range(screen.max_rounds + 1):
+            intruders = [Intruder.from_trajectory(flown[k][1], flown[k][2], flown[k][0], intruder_dt) for k in near]
+            opt = LandingOptimizer(sub, [guess], options, intruders=intruders, earliest_landing=earliest,
+                                   scales=scales)
+            if before is not None and before.layout.signature() != opt.layout.signature():
+                before = None
+            params = opt.problem.params(sub, [guess.landing_time])
+            if part is not None:  # intruders added: warm, on the mesh already refined
+                sol = opt.solver.solve(params, guess=part.solution, meshes=part.solution.meshes, warm=True,
+                                       refine_mesh=False, deadline=deadline)
+            elif before is not None and mesh is not None:  # verification-driven refinement
+                sol = opt.solver.solve(params, guess=before.solution, meshes=mesh, warm=True, deadline=deadline)
+            elif before is not None:  # a replan: the previous plan shifted in time, on its mesh
+                sol = opt.solver.solve(params, guess=phase_guesses(sub, opt.layout, [guess]),
+                                       meshes=before.solution.meshes, warm=True, deadline=deadline)
+            else:
+                sol = opt.solver.solve(params, deadline=deadline)
+            part = opt._result(sol, sol.solve_time, sum(m.build_time for m in sol.mesh_history),
+                               [guess.landing_time])
+            if not part.success:
+                break
+            mine = part.trajectories[0]
+            close = [k for k, (_, t, pos) in enumerate(flown) if k not in near
+                     and closest_approach(mine.t, mine.positions, t, pos) < sep + screen.recheck_nm(scales)]
+            if not close:
+                break
+            log.info("%s: %s came close; re-solving against them too", guess.callsign,
+                     ", ".join(flown[k][0] for k in close))
+            near += close
+        assert part is not None
+        log.debug("sequential: %s planned against %d of %d earlier aircraft", guess.callsign, len(near), len(flown))
+        return part
+
     def _solve_all(self, scenario: Scenario, guesses: Sequence[AircraftGuess], previous: list[LandingResult] | None,
-                   meshes: list | None, deadline, only: set[str] | None = None) -> LandingResult:
+                   meshes: dict | None, deadline, only: set[str] | None = None) -> LandingResult:
         options = replace(self.options, pair_screen=None)
-        screen = self.screen
-        sep = scenario.separation_nm
+        order = list(guesses)
         parts: list[LandingResult] = []
         before_by_callsign = {p.trajectories[0].callsign: p for p in previous or [] if p.trajectories}
         kept_parts: list[LandingResult] = []
         flown: list[tuple[str, np.ndarray, np.ndarray]] = []  # callsign, t, positions of the planned ones
+        recoveries: list[Recovery] = []
         t_start = time.perf_counter()
-        for i, guess in enumerate(guesses):
+        i = 0
+        while i < len(order):
+            guess = order[i]
             if deadline is not None and deadline.expired():
                 break
             kept = before_by_callsign.get(guess.callsign) if only is not None and guess.callsign not in only else None
@@ -105,63 +182,115 @@ class SequentialOptimizer:
                 parts.append(kept)
                 tr = kept.trajectories[0]
                 flown.append((tr.callsign, tr.t, tr.positions))
+                i += 1
                 continue
-            own = scenario.aircraft_by_callsign(guess.callsign)
-            sub = replace(scenario, aircraft=(own,))
-            near = [k for k, (_, t, pos) in enumerate(flown)
-                    if _guess_distance(guess, t, pos) < sep + screen.near_nm]
             earliest = None
             if not options.fixed_landing_times and parts:
-                earliest = parts[-1].landing_times[parts[-1].trajectories[0].callsign] + scenario.landing_spacing_s
+                earliest = self._landed(parts[-1]) + scenario.landing_spacing_s
                 if guess.landing_time < earliest:
-                    guess = _retimed(guess, earliest)
-            part: LandingResult | None = None
-            for _ in range(screen.max_rounds + 1):
-                intruders = [Intruder.from_trajectory(flown[k][1], flown[k][2], flown[k][0]) for k in near]
-                opt = LandingOptimizer(sub, [guess], options, intruders=intruders, earliest_landing=earliest)
-                before = before_by_callsign.get(guess.callsign)
-                if before is not None and before.layout.signature() != opt.layout.signature():
-                    before = None
-                params = opt.problem.params(sub, [guess.landing_time])
-                if part is not None:  # intruders added: warm, on the mesh already refined
-                    sol = opt.solver.solve(params, guess=part.solution, meshes=part.solution.meshes, warm=True,
-                                           refine_mesh=False, deadline=deadline)
-                elif before is not None and meshes is not None:  # verification-driven refinement
-                    sol = opt.solver.solve(params, guess=before.solution, meshes=meshes[i], warm=True,
-                                           deadline=deadline)
-                elif before is not None:  # a replan: the previous plan shifted in time, on its mesh
-                    sol = opt.solver.solve(params, guess=phase_guesses(sub, opt.layout, [guess]),
-                                           meshes=before.solution.meshes, warm=True, deadline=deadline)
-                else:
-                    sol = opt.solver.solve(params, deadline=deadline)
-                part = opt._result(sol, sol.solve_time, sum(m.build_time for m in sol.mesh_history),
-                                   [guess.landing_time])
-                if not part.success:
-                    break
-                mine = part.trajectories[0]
-                close = [k for k, (_, t, pos) in enumerate(flown) if k not in near
-                         and closest_approach(mine.t, mine.positions, t, pos) < sep + screen.recheck_nm]
-                if not close:
-                    break
-                log.info("%s: %s came close; re-solving against them too", guess.callsign,
-                         ", ".join(flown[k][0] for k in close))
-                near += close
-            assert part is not None
+                    guess = order[i] = _retimed(guess, earliest)
+            mesh = None if meshes is None else meshes.get(guess.callsign)
+            part = self._solve_one(scenario, guess, flown, before_by_callsign.get(guess.callsign), mesh, deadline,
+                                   earliest, options)
+            if not part.success and meshes is None:
+                log.warning("sequential: %s found no plan (%s); trying to recover", guess.callsign, part.status)
+                step = self._recover(scenario, order, i, parts, flown, recoveries, deadline, options)
+                if step == "swap":  # the previous aircraft is planned again, after this one
+                    parts.pop()
+                    flown.pop()
+                    i -= 1
+                    continue
+                if step is not None:
+                    part = step
             parts.append(part)
             if not part.success:
-                log.warning("sequential: %s found no plan (%s)", guess.callsign, part.status)
+                log.warning("sequential: %s found no plan (%s)", order[i].callsign, part.status)
                 break
             tr = part.trajectories[0]
             flown.append((tr.callsign, tr.t, tr.positions))
-            log.debug("sequential: %s planned against %d of %d earlier aircraft", guess.callsign, len(near), i)
+            i += 1
         wall = time.perf_counter() - t_start
         solved = [p for p in parts if all(p is not k for k in kept_parts)]
-        return _combine(parts, len(guesses), self.layout, wall, solved=solved)
+        self.layout = layout_for(scenario, order)
+        result = _combine(parts, len(order), self.layout, wall, solved=solved)
+        result.recoveries = recoveries
+        return result
+
+    @staticmethod
+    def _landed(part: LandingResult) -> float:
+        return part.landing_times[part.trajectories[0].callsign]
+
+    def _recover(self, scenario: Scenario, order: list[AircraftGuess], i: int, parts: list[LandingResult],
+                 flown: list[tuple[str, np.ndarray, np.ndarray]], recoveries: list[Recovery], deadline,
+                 options: LandingOptions) -> LandingResult | str | None:
+        """Try :data:`RECOVERIES` for the aircraft at ``order[i]``: a plan (``order`` updated), ``"swap"`` (the
+        aircraft and the previous one exchanged in ``order``: plan the previous index again) or None."""
+        guess = order[i]
+        cs = guess.callsign
+        schedule_made = scenario.aircraft_by_callsign(cs).landing_time is None
+        traffic = [(t, pos) for _, t, pos in flown]
+        earliest = (self._landed(parts[-1]) + scenario.landing_spacing_s) if parts else None
+
+        def attempt(name: str, run) -> LandingResult | str | None:
+            if deadline is not None and deadline.expired():
+                return None
+            t0 = time.perf_counter()
+            outcome = run()
+            ok = outcome == "swap" or (isinstance(outcome, LandingResult) and outcome.success)
+            recoveries.append(Recovery(cs, name, ok, time.perf_counter() - t0))
+            log.info("sequential: %s: recovery '%s' %s (%.1f s)", cs, name, "worked" if ok else "failed",
+                     time.perf_counter() - t0)
+            return outcome if ok else None
+
+        def another_guess() -> LandingResult | None:
+            new = self.reguess(scenario, cs, guess.landing_time, traffic, len(recoveries)) if self.reguess else None
+            if new is None:
+                return None
+            part = self._solve_one(scenario, new, flown, None, None, deadline, None if options.fixed_landing_times
+                                   else earliest, options)
+            if part.success:
+                order[i] = new
+            return part
+
+        def later_landing() -> LandingResult | None:
+            free = replace(options, fixed_landing_times=False)
+            part = self._solve_one(scenario, order[i], flown, None, None, deadline, guess.landing_time, free)
+            if part.success:
+                landed = self._landed(part)
+                part.required_landing_times[cs] = landed  # the new slot, as if scheduled so
+                order[i] = _retimed(order[i], landed)
+                for j in range(i + 1, len(order)):  # those after it move back by as much
+                    follows = self._landed(part) + (j - i) * scenario.landing_spacing_s
+                    if order[j].landing_time < follows and \
+                            scenario.aircraft_by_callsign(order[j].callsign).landing_time is None:
+                        order[j] = _retimed(order[j], follows)
+            return part
+
+        def swap() -> str | None:
+            previous = order[i - 1]
+            if scenario.aircraft_by_callsign(previous.callsign).landing_time is not None:
+                return None
+            slot_early, slot_late = previous.landing_time, guess.landing_time
+            order[i - 1], order[i] = _retimed(guess, slot_early), _retimed(previous, slot_late)
+            return "swap"
+
+        steps = [("another guess", another_guess)]
+        if schedule_made and options.fixed_landing_times:
+            steps.append(("later landing", later_landing))
+        if schedule_made and i > 0 and not any(r.callsign == cs and r.name == "swap with the previous"
+                                                 for r in recoveries):
+            steps.append(("swap with the previous", swap))
+        for name, run in steps:
+            outcome = attempt(name, run)
+            if outcome is not None:
+                return outcome
+        return None
 
 
-def _guess_distance(guess: AircraftGuess, t: np.ndarray, pos: np.ndarray) -> float:
-    """Smallest distance between a guess (sampled every second) and a planned path while both fly."""
-    ts = np.arange(0.0, guess.landing_time + 1.0, 1.0)
+def _guess_distance(guess: AircraftGuess, t: np.ndarray, pos: np.ndarray, scales: Scales) -> float:
+    """Smallest distance between a guess (sampled as the pair screen does) and a planned path while both fly."""
+    dt = scales.seconds(1.0 / SAMPLES_PER_TURN_TIME)
+    ts = np.arange(0.0, guess.landing_time + dt, dt)
     return closest_approach(ts, guess.state_at(ts)[:, :3], t, pos)
 
 

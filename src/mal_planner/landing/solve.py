@@ -14,7 +14,15 @@ from mal_planner.initializer.schedule import make_schedule
 from mal_planner.initializer.timing import earliest_landing_times
 from mal_planner.landing.guess import AircraftGuess, guess_from_initial_plan, straight_line_guess
 from mal_planner.landing.layout import PhaseLayout, plan_layout
-from mal_planner.landing.pairs import PairScreen, PhasePairs, all_pairs, close_unconstrained, count, screen_pairs
+from mal_planner.landing.pairs import (
+    SAMPLES_PER_TURN_TIME,
+    PairScreen,
+    PhasePairs,
+    all_pairs,
+    close_unconstrained,
+    count,
+    screen_pairs,
+)
 from mal_planner.landing.problem import (
     Intruder,
     LandingProblem,
@@ -23,6 +31,7 @@ from mal_planner.landing.problem import (
     phase_guesses,
 )
 from mal_planner.ocp import MeshIteration, OCPOptions, OCPSolution, OCPSolver, PhaseMesh, PhaseSolution
+from mal_planner.scales import Scales
 from mal_planner.scenario import Scenario
 from mal_planner.trajectory import Trajectory
 
@@ -41,6 +50,12 @@ LANDING_IPOPT: dict = {
 }
 
 
+OUTPUT_STEP_TURN_TIMES = 1.0 / 30.0
+"""Default sampling step of the published trajectories, in turn times (thesis: 0.25 s)."""
+REFINE_PAD_TURN_TIMES = 1.0 / 7.5
+"""A verification-driven refinement cuts a new segment this far around a violation (thesis: 1 s)."""
+
+
 @dataclass(frozen=True)
 class LandingOptions:
     guess: Literal["initializer", "straight"] = "initializer"
@@ -49,12 +64,13 @@ class LandingOptions:
     """Fix the landing times at the schedule's (the scenario's where it gives them); False: the optimizer
     chooses them, subject to the minimum spacing."""
     segments: int = 4
-    """Initial mesh: at most this many segments per phase ..."""
+    """Initial mesh without ``segment_turn_times``: this many segments per phase ..."""
     degree: int = 6
     """... of this many collocation points each."""
-    segment_seconds: float | None = 20.0
-    """About one initial segment per this many seconds of (guessed) phase duration; None: ``segments``.
-    Short phases then start on small meshes (measured: thesis 3.5 -> 2.2 s, five aircraft 15 -> 7 s)."""
+    segment_turn_times: float | None = 2.5
+    """About one initial segment per this many turn times of (guessed) phase duration (thesis: one per 20 s);
+    None: ``segments`` in every phase. Short phases then start on small meshes (measured: thesis 3.5 -> 2.2 s,
+    five aircraft 15 -> 7 s)."""
     mesh_tol: float = 1e-6
     n_min: int = 3
     n_max: int = 10
@@ -62,8 +78,9 @@ class LandingOptions:
     nlp_tol: float = 1e-8
     max_nlp_iterations: int = 3000
     refine: bool = True
-    output_dt: float = 0.25
-    """Sampling step of the output trajectories (dense samples of the solution's interpolants)."""
+    output_dt: float | None = None
+    """Sampling step (s) of the output trajectories (dense samples of the solution's interpolants); None: a
+    thirtieth of the scenario's turn time (thesis: 0.25 s)."""
     control_tol: float = 1e-5
     """The published controls, linear between samples, stay this close (load factor) to the solution's control
     interpolant at every midpoint: where they do not, samples are added (see :func:`published_times`)."""
@@ -102,6 +119,8 @@ class LandingResult:
     parts: list[LandingResult] = field(default_factory=list)
     """Sequential decomposition: the per-aircraft results in landing order (empty for a joint solve)."""
     strategy: str = "joint"
+    recoveries: list = field(default_factory=list)
+    """Sequential decomposition: the recoveries tried (:class:`mal_planner.landing.sequential.Recovery`)."""
 
     def stats(self) -> dict:
         return {
@@ -112,6 +131,8 @@ class LandingResult:
             "solve_time_s": self.solve_time,
             "build_time_s": self.build_time,
             "nlp_iterations": self.nlp_iterations,
+            "recoveries": [{"callsign": r.callsign, "recovery": r.name, "success": r.success, "seconds": r.seconds}
+                           for r in self.recoveries],
             "phases": self.phase_names,
             "mesh_iterations": [
                 {"iteration": m.iteration, "segments": list(m.segments), "degrees": [list(d) for d in m.degrees],
@@ -122,7 +143,7 @@ class LandingResult:
         }
 
 
-def split_segments(mesh: PhaseMesh, t0: float, tf: float, times: Sequence[float], pad_s: float = 1.0) -> PhaseMesh:
+def split_segments(mesh: PhaseMesh, t0: float, tf: float, times: Sequence[float], pad_s: float) -> PhaseMesh:
     """The phase ``[t0, tf]``'s mesh with a new segment (same degree) around the times in each segment that
     contains some: from the first to the last of them, ``pad_s`` wider on each side (a cut closer than
     ``pad_s / 2`` to the segment's end is left out); a segment the times (nearly) cover is halved instead.
@@ -164,8 +185,10 @@ class LandingOptimizer:
     """
 
     def __init__(self, scenario: Scenario, guesses: list[AircraftGuess], options: LandingOptions,
-                 intruders: Sequence[Intruder] = (), earliest_landing: float | None = None) -> None:
+                 intruders: Sequence[Intruder] = (), earliest_landing: float | None = None,
+                 scales: Scales | None = None) -> None:
         self.scenario = scenario
+        self.scales = scales or Scales.of(scenario)
         self.options = options
         self.intruders = tuple(intruders)
         self.earliest_landing = earliest_landing
@@ -175,7 +198,7 @@ class LandingOptimizer:
         t0 = time.perf_counter()
         screen = options.pair_screen
         self.pairs: PhasePairs = (all_pairs(self.layout) if screen is None else
-                                  screen_pairs(self.layout, guesses, scenario.separation_nm, screen))
+                                  screen_pairs(self.layout, guesses, self.scales, screen))
         self._build()
         self.setup_time = time.perf_counter() - t0
 
@@ -184,8 +207,8 @@ class LandingOptimizer:
         self.problem: LandingProblem = build_landing_problem(
             self.scenario, self.layout, self._guesses, options.fixed_landing_times,
             PhaseMesh.uniform(options.segments, options.degree), margins=options.margins,
-            segment_seconds=options.segment_seconds, pairs=self.pairs, intruders=self.intruders,
-            earliest_landing=self.earliest_landing)
+            segment_turn_times=options.segment_turn_times, pairs=self.pairs, intruders=self.intruders,
+            earliest_landing=self.earliest_landing, scales=self.scales)
         self.solver = OCPSolver(self.problem.problem, OCPOptions(
             tol=options.nlp_tol, max_iter=options.max_nlp_iterations, refine=options.refine,
             mesh_tol=options.mesh_tol, n_min=options.n_min, n_max=options.n_max,
@@ -193,6 +216,16 @@ class LandingOptimizer:
         if len(self.layout.callsigns) > 1:
             log.debug("separation constraints on %d of %d phase pairs", count(self.pairs),
                       count(all_pairs(self.layout)))
+
+    @property
+    def output_dt(self) -> float:
+        """Sampling step of the published trajectories (s)."""
+        return self.options.output_dt or self.scales.seconds(OUTPUT_STEP_TURN_TIMES)
+
+    @property
+    def refine_pad_s(self) -> float:
+        """How far around a violation a verification-driven refinement cuts its new segment (s)."""
+        return self.scales.seconds(REFINE_PAD_TURN_TIMES)
 
     def _with_close_pairs(self, result: LandingResult, scenario: Scenario, deadline) -> LandingResult:
         """Re-solve (warm) with every unconstrained pair that came close added, until none does."""
@@ -202,11 +235,12 @@ class LandingOptimizer:
             if deadline is not None and deadline.expired():
                 break
             samples = []
+            dt = self.scales.seconds(0.5 / SAMPLES_PER_TURN_TIME)
             for phase in result.solution.phases:
-                t = np.linspace(phase.t0, phase.tf, max(20, int(np.ceil((phase.tf - phase.t0) / 0.5)) + 1))
+                t = np.linspace(phase.t0, phase.tf, max(20, int(np.ceil((phase.tf - phase.t0) / dt)) + 1))
                 samples.append((t, phase.interpolate(t)[0]))
             close = close_unconstrained(self.layout, samples, self.pairs,
-                                        scenario.separation_nm + screen.recheck_nm)
+                                        scenario.separation_nm + screen.recheck_nm(self.scales))
             if not count(close):
                 break
             rounds += 1
@@ -269,7 +303,7 @@ class LandingOptimizer:
         scenario = scenario or self.scenario
         meshes = []
         for phase, mesh in zip(previous.solution.phases, previous.solution.meshes, strict=True):
-            meshes.append(split_segments(mesh, phase.t0, phase.tf, times))
+            meshes.append(split_segments(mesh, phase.t0, phase.tf, times, self.refine_pad_s))
         landing_times = [previous.required_landing_times[cs] for cs in self.layout.callsigns]
         params = self.problem.params(scenario, landing_times)
         t0 = time.perf_counter()
@@ -299,8 +333,7 @@ class LandingOptimizer:
                 # A phase boundary appears twice: the end of one phase with the control that applied up
                 # to it, then the start of the next with the control that applies from it.
                 # The global grid k * output_dt inside the phase, its ends and the nodes.
-                t = published_times(phase, slice(2 * j, 2 * j + 2), self.options.output_dt,
-                                    self.options.control_tol)
+                t = published_times(phase, slice(2 * j, 2 * j + 2), self.output_dt, self.options.control_tol)
                 x_all, u_all = phase.interpolate(t)
                 x = x_all[:, 5 * j:5 * j + 5]
                 u = u_all[:, 2 * j:2 * j + 2]  # published exactly as solved: the verification checks them
@@ -388,12 +421,13 @@ def uses_sequential(options: LandingOptions, n_aircraft: int) -> bool:
     return options.strategy == "sequential" or (options.strategy == "auto" and n_aircraft >= options.sequential_from)
 
 
-def make_optimizer(scenario: Scenario, guesses: list[AircraftGuess], options: LandingOptions):
-    """The optimizer ``options.strategy`` asks for: a :class:`LandingOptimizer` or a SequentialOptimizer."""
+def make_optimizer(scenario: Scenario, guesses: list[AircraftGuess], options: LandingOptions, reguess=None):
+    """The optimizer ``options.strategy`` asks for: a :class:`LandingOptimizer` or a SequentialOptimizer (whose
+    first recovery, a new guess, comes from ``reguess``; see :data:`mal_planner.landing.sequential.Reguess`)."""
     if uses_sequential(options, len(guesses)):
         from mal_planner.landing.sequential import SequentialOptimizer
 
-        return SequentialOptimizer(scenario, guesses, options)
+        return SequentialOptimizer(scenario, guesses, options, reguess)
     return LandingOptimizer(scenario, guesses, options)
 
 

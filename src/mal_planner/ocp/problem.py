@@ -79,7 +79,10 @@ class Phase:
     are only given at solve time.  Bounds left as ``None`` are unbounded; the initial and
     final state bounds default to the state bounds.  ``state_scale``/``control_scale``
     may be a vector or ``"auto"`` (from finite bounds); decision variables are the
-    physical values divided by the scale.
+    physical values divided by the scale. ``time_scale`` does the same for the phase's times,
+    and ``path_scale`` divides the path constraints (and their bounds), so that a problem posed in
+    physical units reaches the NLP solver with numbers of order one (GPOPS-II and dymos scale the
+    same way: by a characteristic value of each variable and constraint).
     """
 
     name: str
@@ -105,15 +108,25 @@ class Phase:
     guess: PhaseGuess | None = None
     mesh: PhaseMesh = field(default_factory=PhaseMesh.uniform)
     bound_controls_between: bool = False
-    """Also keep the control interpolant of each segment within the control bounds halfway between its
-    collocation points and at the segment end (linear constraints): a solution whose controls ride a bound
-    otherwise overshoots it there, and that interpolant is what gets published and flown."""
+    """Also keep the control interpolant of each segment within the control bounds, and ``control_path``
+    within its bounds, halfway between its collocation points and at the segment end: a solution whose
+    controls ride a limit otherwise overshoots it there, and that interpolant is what gets published and
+    flown (a 7-aircraft campaign plan banked 45.28 deg against 45 between two points)."""
+    control_path: Callable[[ca.SX], object] | None = None
+    """Constraints on the controls alone ``c(u)`` (e.g. a bank-angle limit), in [control_path_lb,
+    control_path_ub] at every collocation point, and between them with ``bound_controls_between``."""
+    control_path_lb: Sequence[float] | float | None = None
+    control_path_ub: Sequence[float] | float | None = None
     state_scale: Sequence[float] | str | None = None
     control_scale: Sequence[float] | str | None = None
+    time_scale: float = 1.0
+    path_scale: Sequence[float] | float | None = None
 
     def __post_init__(self) -> None:
         if self.min_duration <= 0.0:
             raise ValueError("min_duration must be > 0")
+        if not self.time_scale > 0.0:
+            raise ValueError("time_scale must be > 0")
 
     @property
     def nx(self) -> int:
@@ -203,7 +216,9 @@ class Problem:
     """Multi-phase problem: J = mayer(E, p) + sum of phase integrals (if ``lagrange_in_cost``).
 
     ``events(E, p)`` returns a vector constrained to ``[events_lb, events_ub]``; linkages
-    added with :meth:`link` become extra equality events.
+    added with :meth:`link` become extra equality events. The NLP minimises J / ``objective_scale``
+    and sees the events divided by ``events_scale`` (a scalar or one entry per event); linkage rows are
+    divided by the scales of the second phase's states and time. Solutions are reported unscaled.
     """
 
     phases: list[Phase]
@@ -214,6 +229,8 @@ class Problem:
     events_ub: Sequence[float] | float | None = None
     lagrange_in_cost: bool = True
     linkages: list[Linkage] = field(default_factory=list)
+    objective_scale: float = 1.0
+    events_scale: Sequence[float] | float | None = None
 
     def __post_init__(self) -> None:
         names = [ph.name for ph in self.phases]

@@ -11,7 +11,7 @@ from typing import Any
 import casadi as ca
 import numpy as np
 
-from .mesh import estimate_errors, refine
+from .mesh import estimate_errors, refine, segment_errors
 from .problem import PhaseGuess, PhaseMesh, Problem
 from .solution import MeshIteration, OCPSolution, PhaseSolution
 from .transcription import IterationWatch, Transcription, phase_function
@@ -89,6 +89,9 @@ class OCPSolver:
         self._funcs = [phase_function(ph, problem.n_params) for ph in problem.phases]
         self._f_only = [_first_output(f) for f in self._funcs]
         self._f_maps: dict[tuple[int, int], ca.Function] = {}
+        self._state_scales = [ph.scales()[0] for ph in problem.phases]
+        """The error estimate works on the states as the NLP sees them (divided by their scales), so that its
+        relative error means the same in a scenario of any size."""
         self._cache: OrderedDict[MeshKey, Transcription] = OrderedDict()
         self._nlp_opts = {False: self.options.nlpsol_options(), True: self.options.nlpsol_options(True)}
         self.n_builds = 0
@@ -111,12 +114,15 @@ class OCPSolver:
         return tr, True
 
     def _dynamics_eval(self, phase: int, params: np.ndarray) -> Callable[..., np.ndarray]:
+        """The phase's dynamics on scaled states (columns): what the error estimate integrates."""
+        scale = self._state_scales[phase][:, None]
+
         def f_eval(x: np.ndarray, u: np.ndarray, t: np.ndarray) -> np.ndarray:
             k = t.size
             fm = self._f_maps.get((phase, k))
             if fm is None:
                 fm = self._f_maps[(phase, k)] = self._f_only[phase].map(k)
-            return np.asarray(fm(x, u, t.reshape(1, -1), params)).reshape(x.shape[0], k)
+            return np.asarray(fm(x * scale, u, t.reshape(1, -1), params)).reshape(x.shape[0], k) / scale
 
         return f_eval
 
@@ -155,6 +161,7 @@ class OCPSolver:
         best_iteration = -1
         src: GuessArg = guess
         converged = False
+        previous: list = [None] * len(cur)  # per phase, the segment errors of the last iteration
         self.watch.start(deadline)
         for it in range(opt.max_mesh_iterations + 1):
             if it > 0 and deadline is not None and deadline.expired():
@@ -177,7 +184,8 @@ class OCPSolver:
             total_iter += res.iterations
             sol = self._make_solution(tr, res, p)
             errors = tuple(
-                estimate_errors(ps.layout, ps.t0, ps.tf, ps.x.T, ps.u[:-1].T, self._dynamics_eval(i, p))
+                estimate_errors(ps.layout, ps.t0, ps.tf, ps.x.T / self._state_scales[i][:, None], ps.u[:-1].T,
+                                self._dynamics_eval(i, p))
                 for i, ps in enumerate(sol.phases)
             )
             max_err = max((float(e.max()) for e in errors if e.size), default=0.0)
@@ -220,7 +228,9 @@ class OCPSolver:
             if it - best_iteration >= 2:
                 log.info("mesh refinement stalled: no better error in 2 iterations; stopping")
                 break
-            new = tuple(refine(m, e, opt.mesh_tol, opt.n_min, opt.n_max) for m, e in zip(cur, errors, strict=True))
+            new = tuple(refine(m, e, opt.mesh_tol, opt.n_min, opt.n_max, before)
+                        for m, e, before in zip(cur, errors, previous, strict=True))
+            previous = [segment_errors(m, e) for m, e in zip(cur, errors, strict=True)]
             key = tuple(m.key() for m in new)
             if key in visited:
                 log.warning("mesh refinement revisits a solved mesh; stopping")
