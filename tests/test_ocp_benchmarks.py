@@ -209,3 +209,46 @@ def test_scaled_units_reach_ipopt_with_the_same_numbers() -> None:
     assert scaled.objective == pytest.approx(reference.objective * length**2 / time_**3, rel=1e-9)
     assert scaled.phases[0].t == pytest.approx(reference.phases[0].t * time_, rel=1e-9)
     assert scaled.phases[0].x[:, 0] == pytest.approx(reference.phases[0].x[:, 0] * length, rel=1e-6, abs=1e-9)
+
+
+def _derivatives_both_ways(problem: Problem, params, lam_f: float = 0.7, seed: int = 0):
+    """The constraint Jacobian and the Lagrangian's Hessian of ``problem``'s NLP at a random point near its
+    guess, from the nodes' own derivatives and from CasADi's differentiation of the whole NLP."""
+    from mal_planner.ocp.transcription import Transcription
+
+    solver = OCPSolver(problem)
+    meshes = tuple(ph.mesh for ph in problem.phases)
+    structured = Transcription(problem, meshes, solver._funcs, solver._nlp_opts[False], None, solver._nodes)
+    plain = Transcription(problem, meshes, solver._funcs, solver._nlp_opts[False], None, None)
+    rng = np.random.default_rng(seed)
+    w = plain.initial_guess(None)
+    w = w * (1.0 + 0.01 * rng.standard_normal(w.size)) + 0.01 * rng.standard_normal(w.size)
+    args = {"x": w, "p": params}
+    lam = {"lam_f": lam_f, "lam_g": rng.standard_normal(plain.lbg.size)}
+    out = []
+    for name, extra in (("nlp_jac_g", {}), ("nlp_hess_l", lam)):
+        a = plain.solver.get_function(name)(**args, **extra)
+        b = structured.solver.get_function(name)(**args, **extra)
+        key = list(a)[-1]
+        out.append((np.asarray(a[key].full()), np.asarray(b[key].full())))
+    return out
+
+
+@pytest.mark.parametrize("case", ["three_phase_bryson_denham", "thesis"])
+def test_node_derivatives_equal_casadi_s_differentiation(case: str) -> None:
+    """The Jacobian and Hessian IPOPT gets are assembled from each node's derivatives (ocp.nodes); they must be
+    CasADi's own, entry for entry: linkages, events, path constraints, time-dependent terms and scales included."""
+    if case == "thesis":
+        from mal_planner.initializer.sequencer import plan_initial
+        from mal_planner.landing.solve import LandingOptimizer, LandingOptions, make_guesses
+        from mal_planner.scenario import load_scenario
+
+        sc = load_scenario("scenarios/thesis.yaml")
+        options = LandingOptions(strategy="joint")
+        opt = LandingOptimizer(sc, make_guesses(sc, plan_initial(sc, seed=0), options), options)
+        problem, params = opt.problem.problem, opt.problem.params(sc, opt.landing_times)
+    else:
+        problem, params = _three_phase_bd(), np.array([1.0 / 9.0])
+    for plain, structured in _derivatives_both_ways(problem, params):
+        assert np.abs(plain).max() > 0.0
+        np.testing.assert_allclose(structured, plain, rtol=0.0, atol=1e-10 * np.abs(plain).max())

@@ -35,11 +35,10 @@ from mal_planner.initializer.collision import CollisionChecker
 from mal_planner.initializer.frame import RunwayFrame
 from mal_planner.initializer.planners import PathPlanner, PlanningFailed, make_planner, path_length
 from mal_planner.initializer.schedule import DEFAULT_MARGIN_TURN_TIMES, LandingSchedule, make_schedule
-from mal_planner.initializer.smoothing import remove_repeats
+from mal_planner.initializer.smoothing import SmoothedSearch, greedy_shortcut, remove_repeats, smooth_path
 from mal_planner.initializer.timing import dubins_path_length, earliest_landing_times
 from mal_planner.scales import Scales
 from mal_planner.scenario import Aircraft, Scenario
-from mal_planner.trajectory import closest_approach
 
 log = logging.getLogger("mal_planner.initializer")
 
@@ -279,6 +278,28 @@ class Sequencer:
             raise PlanningFailed(errors[-1])
         return best
 
+    def _quick_plan(self, checker: CollisionChecker, start: np.ndarray, goal: np.ndarray,
+                    rng: np.random.Generator) -> np.ndarray:
+        """A candidate leg: the planner's path with the greedy shortcut only (the random shortcuts, about 40 %
+        of a terminal area's initializer time, are for the path that is kept; see :meth:`_polish`)."""
+        if isinstance(self._planner, SmoothedSearch):
+            return greedy_shortcut(checker, self._planner.search(checker, start, goal, rng))
+        return self._planner.plan(checker, start, goal, rng)
+
+    def _polish(self, checker: CollisionChecker, path: np.ndarray, rng: np.random.Generator) -> np.ndarray:
+        """The kept path smoothed as the planner smooths its own (a no-op for other planners)."""
+        if isinstance(self._planner, SmoothedSearch):
+            return smooth_path(checker, path, rng, self._planner.smooth_rounds)
+        return path
+
+    def _polished(self, checker: CollisionChecker, leg1: np.ndarray, leg2: np.ndarray, route: Approach,
+                  rng: np.random.Generator, path: np.ndarray, lo_len: float, hi_len: float) -> np.ndarray:
+        """The two legs of a kept candidate smoothed (the route after them is kept as it is); the candidate as it
+        was if smoothing takes it out of the window."""
+        smooth = remove_repeats(np.vstack([self._polish(checker, leg1, rng),
+                                           self._join(checker, self._polish(checker, leg2, rng), route, rng)]))
+        return smooth if lo_len <= path_length(smooth) <= hi_len else path
+
     def _join(self, checker: CollisionChecker, to_route: np.ndarray, route: Approach,
               rng: np.random.Generator) -> np.ndarray:
         """A path to the route's first point, then the route; a leg of the route that is not free (e.g. from a
@@ -306,9 +327,22 @@ class Sequencer:
         v = ac.speed
         need = scenario.separation_nm + scales.lengths(self.guess_buffer_radii)
 
+        # The traffic on one time grid (every half turn time), NaN where an aircraft has landed: a candidate's
+        # clearance is then one vectorised distance.
+        grid = np.arange(0.0, scheduled + scales.time_s, 0.5 * scales.time_s)
+        others = np.full((len(traffic), len(grid), 3), np.nan)
+        for k, (t_o, pos_o) in enumerate(traffic):
+            flying = grid <= t_o[-1]
+            others[k, flying] = np.column_stack([np.interp(grid[flying], t_o, pos_o[:, c]) for c in range(3)])
+
         def clearance(path: np.ndarray) -> float:
-            t, pos = timed_guess(path, v, scheduled)
-            return min((closest_approach(t, pos, *other) for other in traffic), default=math.inf)
+            if not len(traffic):
+                return math.inf
+            times = timed_path(path, v)
+            times = times * (scheduled / times[-1]) if times[-1] > 0 else times
+            mine = np.column_stack([np.interp(grid, times, path[:, c]) for c in range(3)])
+            gaps = np.linalg.norm(others - mine[None], axis=2)
+            return float(np.nanmin(gaps)) if np.isfinite(gaps).any() else math.inf
         dubins, straight = dubins_path_length(scenario, ac)
         turns = max(dubins - straight, 0.0)  # what the turns add to the polyline's length
         window, margin = scales.seconds(self.window_turn_times), scales.seconds(self.landing_margin_turn_times)
@@ -332,53 +366,63 @@ class Sequencer:
         side0 = [np.sign(g.signed_distance(start)) for g in scenario.gates]
         tried: set[tuple[int, int, int]] = set()
         planned = 0
-        best: tuple[tuple[float, float, float], np.ndarray, np.ndarray] | None = None  # (rank, path, waypoint)
-        for draw in range(self.max_waypoint_draws):
-            if planned >= self.max_waypoint_plans:
+        best: tuple | None = None  # (rank, path, waypoint, leg1, leg2)
+        route_cum = np.concatenate([[0.0], np.cumsum(np.linalg.norm(np.diff(route.points, axis=0), axis=1))])
+        done = False
+        for first in range(0, self.max_waypoint_draws, WAYPOINT_BATCH):
+            if done or planned >= self.max_waypoint_plans:
                 break
-            strict = planned < self.max_waypoint_plans // 2 and draw < self.max_waypoint_draws // 2
-            point = _ellipse_point(start, goal, target - tail, scenario.airspace, rng) if draw % 4 else None
-            if point is None:
-                key = tuple(int(i) for i in rng.integers(lo_i, hi_i + 1))
-            else:
-                key = tuple(int(i) for i in np.clip(np.round(point / res), lo_i, hi_i))
-            if key in tried:
-                continue
-            tried.add(key)
-            wp = np.asarray(key, dtype=float) * res
-            d1, d2 = np.linalg.norm(wp - start), np.linalg.norm(goal - wp) + tail
-            if d1 + d2 > hi_len or d1 + d2 < direct_len - 1e-9:  # the straight-line bound already fails
-                continue
-            if strict and (d1 <= d2 or float(np.dot(goal - wp, onto)) < 0.0):
-                continue
-            if any(np.sign(g.signed_distance(wp)) != s for g, s in zip(scenario.gates, side0, strict=True)):
-                continue
-            if not checker.point_free(wp):
-                continue
-            if strict and traffic and clearance(np.vstack([start, wp, route.points])) < need:
-                continue  # the straight legs already come too close: not worth planning them
-            try:
-                planned += 1
-                leg1 = self._planner.plan(checker, start, wp, rng)
-                leg1_len = path_length(leg1)
-                too_long = leg1_len + d2 - hi_len  # a lower bound of how far past the window it lands
-                if too_long > 0.0 and best is not None and too_long >= best[0][0]:
+            strict = planned < self.max_waypoint_plans // 2 and first < self.max_waypoint_draws // 2
+            keys = _waypoint_keys(rng, WAYPOINT_BATCH, first, start, goal, target - tail, scenario.airspace, res,
+                                  lo_i, hi_i)
+            keys, index = np.unique(keys, axis=0, return_index=True)
+            keys = keys[np.argsort(index)]  # in the order drawn
+            fresh = np.array([tuple(k) not in tried for k in keys.tolist()], bool)
+            tried.update(tuple(k) for k in keys.tolist())
+            wps = keys[fresh].astype(float) * res
+            d1 = np.linalg.norm(wps - start, axis=1)
+            d2 = np.linalg.norm(goal - wps, axis=1) + tail
+            ok = (d1 + d2 <= hi_len) & (d1 + d2 >= direct_len - 1e-9)  # the straight-line bounds
+            if strict:
+                ok &= (d1 > d2) & ((goal - wps) @ onto >= 0.0)
+            for g, side in zip(scenario.gates, side0, strict=True):
+                ok &= np.sign(g.signed_distance(wps)) == side
+            ok[ok] = checker.points_free(wps[ok])
+            if strict and len(traffic) and ok.any():  # the straight legs already come too close: not worth planning
+                near = _proxy_positions(start, wps[ok], goal, route.points, route_cum, scheduled, grid)
+                gaps = np.linalg.norm(others[None] - near[:, None], axis=3)
+                ok[ok] = np.nanmin(np.where(np.isfinite(gaps), gaps, np.inf), axis=(1, 2)) >= need
+            for wp, d2_wp in zip(wps[ok], d2[ok], strict=True):
+                if planned >= self.max_waypoint_plans or (
+                        best is not None and best[0][0] == 0.0 and planned >= self.max_waypoint_plans // 4):
+                    done = True  # one in the window, only not clear of the traffic: the optimizer separates them
+                    break
+                try:
+                    planned += 1
+                    leg1 = self._quick_plan(checker, start, wp, rng)
+                    leg1_len = path_length(leg1)
+                    too_long = leg1_len + d2_wp - hi_len  # a lower bound of how far past the window it lands
+                    if too_long > 0.0 and best is not None and too_long >= best[0][0]:
+                        continue
+                    planned += 1
+                    leg2 = self._quick_plan(checker, wp, goal, rng)
+                    joined = self._join(checker, leg2, route, rng)
+                except PlanningFailed:
                     continue
-                planned += 1
-                leg2 = self._join(checker, self._planner.plan(checker, wp, goal, rng), route, rng)
-            except PlanningFailed:
-                continue
-            total = leg1_len + path_length(leg2)
-            path = remove_repeats(np.vstack([leg1, leg2]))
-            miss = max(lo_len - total, total - hi_len, 0.0)
-            clear = clearance(path) if miss == 0.0 else 0.0
-            if miss == 0.0 and clear >= need:
-                log.debug("%s: waypoint after %d draws, %d planned", ac.callsign, len(tried), planned)
-                return path, wp
-            rank = (miss, -min(clear, need), 0.0)
-            if best is None or rank < best[0]:
-                best = (rank, path, wp)
+                total = leg1_len + path_length(joined)
+                path = remove_repeats(np.vstack([leg1, joined]))
+                miss = max(lo_len - total, total - hi_len, 0.0)
+                clear = clearance(path) if miss == 0.0 else 0.0
+                if miss == 0.0 and clear >= need:
+                    log.debug("%s: waypoint after %d draws, %d planned", ac.callsign, len(tried), planned)
+                    return self._polished(checker, leg1, leg2, route, rng, path, lo_len, hi_len), wp
+                rank = (miss, -min(clear, need), 0.0)
+                if best is None or rank < best[0]:
+                    best = (rank, path, wp, leg1, leg2)
         if best is not None:
+            if best[0][0] == 0.0:
+                best = (best[0], self._polished(checker, best[3], best[4], route, rng, best[1], lo_len, hi_len),
+                        best[2])
             miss, clear = best[0][0], -best[0][1]
             if miss > 0.0:
                 log.warning("%s: no waypoint met the scheduled landing time within %d planner runs; using the "
@@ -406,27 +450,46 @@ class Sequencer:
         )
 
 
-def _ellipse_point(start: np.ndarray, goal: np.ndarray, length: float, airspace: np.ndarray,
-                   rng: np.random.Generator) -> np.ndarray | None:
-    """A random point P with |P - start| + |goal - P| = ``length`` (horizontally), or None if none exists.
+WAYPOINT_BATCH = 256
+"""Waypoint candidates drawn and screened at once (the screening is vectorised; planning them is not)."""
 
-    Its altitude is drawn between the two ends' altitudes (clipped to the airspace).
-    """
+
+def _waypoint_keys(rng: np.random.Generator, n: int, first: int, start: np.ndarray, goal: np.ndarray,
+                   length: float, airspace: np.ndarray, res: float, lo_i: np.ndarray, hi_i: np.ndarray) -> np.ndarray:
+    """``n`` lattice keys (n, 3) of candidate waypoints: three in four on the ellipse of points P with |P - start| +
+    |goal - P| = ``length`` horizontally (where a two-leg path has that length; altitude between the ends'), the
+    others, and those whose ellipse point leaves the airspace, anywhere in it."""
+    draw = first + np.arange(n)
+    keys = rng.integers(lo_i, hi_i + 1, size=(n, 3))
     s2, g2 = start[:2], goal[:2]
     half_focal = 0.5 * float(np.linalg.norm(g2 - s2))
     a = 0.5 * length
-    if a <= half_focal or half_focal == 0.0:
-        return None
-    b = float(np.sqrt(a * a - half_focal * half_focal))
-    u = (g2 - s2) / (2.0 * half_focal)
-    w = np.array([-u[1], u[0]])
-    theta = rng.uniform(0.0, 2.0 * np.pi)
-    xy = 0.5 * (s2 + g2) + a * np.cos(theta) * u + b * np.sin(theta) * w
-    z = rng.uniform(min(start[2], goal[2]), max(start[2], goal[2]))
-    point = np.array([xy[0], xy[1], z])
-    if np.any(point < airspace[:, 0]) or np.any(point > airspace[:, 1]):
-        return None
-    return point
+    if a > half_focal > 0.0:
+        b = math.sqrt(a * a - half_focal * half_focal)
+        u = (g2 - s2) / (2.0 * half_focal)
+        w = np.array([-u[1], u[0]])
+        theta = rng.uniform(0.0, 2.0 * np.pi, n)
+        xy = 0.5 * (s2 + g2) + np.outer(a * np.cos(theta), u) + np.outer(b * np.sin(theta), w)
+        z = rng.uniform(min(start[2], goal[2]), max(start[2], goal[2]), n)
+        points = np.column_stack([xy, z])
+        inside = np.all((points >= airspace[:, 0]) & (points <= airspace[:, 1]), axis=1) & (draw % 4 != 0)
+        keys[inside] = np.clip(np.round(points[inside] / res), lo_i, hi_i).astype(np.int64)
+    return keys
+
+
+def _proxy_positions(start: np.ndarray, wps: np.ndarray, goal: np.ndarray, route: np.ndarray, route_cum: np.ndarray,
+                     landing_time: float, grid: np.ndarray) -> np.ndarray:
+    """(C, G, 3) positions on ``grid`` of the straight paths start -> waypoint -> goal -> route, flown to land at
+    ``landing_time`` (the candidates' clearance before any of them is planned)."""
+    d1 = np.linalg.norm(wps - start, axis=1)[:, None]
+    d2 = np.linalg.norm(goal - wps, axis=1)[:, None]
+    total = d1 + d2 + route_cum[-1]
+    s = np.clip(grid[None, :] / landing_time, 0.0, 1.0) * total  # (C, G) arc length flown
+    first = start + (wps - start)[:, None, :] * (s / np.maximum(d1, 1e-12))[..., None]
+    second = wps[:, None, :] + (goal - wps)[:, None, :] * ((s - d1) / np.maximum(d2, 1e-12))[..., None]
+    rest = np.clip(s - d1 - d2, 0.0, route_cum[-1])
+    third = np.stack([np.interp(rest, route_cum, route[:, c]) for c in range(3)], axis=-1)
+    return np.where((s <= d1)[..., None], first, np.where((s <= d1 + d2)[..., None], second, third))
 
 
 def plan_initial(scenario: Scenario, planner: str | PathPlanner = "multi-rrt", seed: int | None = None,

@@ -45,7 +45,7 @@ Reguess = Callable[[Scenario, str, float, Sequence[tuple[np.ndarray, np.ndarray]
 traffic (times and positions of the aircraft planned before it), or None (the initializer's
 :meth:`~mal_planner.initializer.sequencer.Sequencer.replan_one`, given by the pipeline)."""
 
-RECOVERIES = ("another guess", "later landing", "swap with the previous")
+RECOVERIES = ("another guess", "later landing", "give way", "swap with the previous")
 """What the sequential strategy tries, in this order, when an aircraft finds no plan against the plans of those
 before it (the joint NLP of everyone is the pipeline's last resort):
 
@@ -53,6 +53,8 @@ before it (the joint NLP of everyone is the pipeline's last resort):
   first guess only kept clear of the others' guesses);
 * *later landing*: where the schedule (not the scenario) set its landing time, the optimizer may land it later
   (the aircraft after it move back by as much);
+* *give way*: its plan alone (no intruders) shows which earlier aircraft block it; the last of them is planned
+  again with that plan as an intruder, then the aircraft again against everyone;
 * *swap with the previous*: it takes the previous aircraft's landing slot, and that one is planned after it."""
 
 
@@ -242,12 +244,13 @@ class SequentialOptimizer:
                      time.perf_counter() - t0)
             return outcome if ok else None
 
+        free_earliest = None if options.fixed_landing_times else earliest
+
         def another_guess() -> LandingResult | None:
             new = self.reguess(scenario, cs, guess.landing_time, traffic, len(recoveries)) if self.reguess else None
             if new is None:
                 return None
-            part = self._solve_one(scenario, new, flown, None, None, deadline, None if options.fixed_landing_times
-                                   else earliest, options)
+            part = self._solve_one(scenario, new, flown, None, None, deadline, free_earliest, options)
             if part.success:
                 order[i] = new
             return part
@@ -266,6 +269,32 @@ class SequentialOptimizer:
                         order[j] = _retimed(order[j], follows)
             return part
 
+        def give_way() -> LandingResult | None:
+            alone = self._solve_one(scenario, order[i], [], None, None, deadline, free_earliest, options)
+            if not alone.success:
+                return None
+            mine = alone.trajectories[0]
+            recheck = scenario.separation_nm + self.screen.recheck_nm(self.scales)
+            blockers = [k for k, (_, t, pos) in enumerate(flown)
+                        if closest_approach(mine.t, mine.positions, t, pos) < recheck]
+            if not blockers:  # its own plan keeps clear of everyone: the failure was the solver's
+                return alone
+            log.info("sequential: %s: its own plan comes close to %s; they give way (latest first)", cs,
+                     ", ".join(flown[b][0] for b in blockers))
+            for k in reversed(blockers):
+                others = flown[:k] + flown[k + 1:] + [(cs, mine.t, mine.positions)]
+                earlier = (self._landed(parts[k - 1]) + scenario.landing_spacing_s
+                           if k > 0 and not options.fixed_landing_times else None)
+                moved = self._solve_one(scenario, _guess_from(parts[k]), others, parts[k], None, deadline, earlier,
+                                        options)
+                if not moved.success:
+                    return None
+                parts[k] = moved
+                tr = moved.trajectories[0]
+                flown[k] = (tr.callsign, tr.t, tr.positions)
+            # from its own plan, which the others now keep clear of
+            return self._solve_one(scenario, _guess_from(alone), flown, alone, None, deadline, free_earliest, options)
+
         def swap() -> str | None:
             previous = order[i - 1]
             if scenario.aircraft_by_callsign(previous.callsign).landing_time is not None:
@@ -277,6 +306,7 @@ class SequentialOptimizer:
         steps = [("another guess", another_guess)]
         if schedule_made and options.fixed_landing_times:
             steps.append(("later landing", later_landing))
+        steps.append(("give way", give_way))
         if schedule_made and i > 0 and not any(r.callsign == cs and r.name == "swap with the previous"
                                                  for r in recoveries):
             steps.append(("swap with the previous", swap))

@@ -12,6 +12,7 @@ import casadi as ca
 import numpy as np
 
 from .mesh import estimate_errors, refine, segment_errors
+from .nodes import node_functions
 from .problem import PhaseGuess, PhaseMesh, Problem
 from .solution import MeshIteration, OCPSolution, PhaseSolution
 from .transcription import IterationWatch, Transcription, phase_function
@@ -46,6 +47,9 @@ class OCPOptions:
         default_factory=lambda: {"mu_init": 1e-5, "bound_push": 1e-6, "bound_frac": 1e-6}
     )
     callback: Callable[[MeshIteration], None] | None = None
+    structured_derivatives: bool = True
+    """Give IPOPT the constraint Jacobian and the Lagrangian's Hessian assembled from each node's own derivatives
+    (:mod:`mal_planner.ocp.nodes`); False: CasADi differentiates the whole NLP (the same numbers, slower)."""
     cached_nlps: int = 3
     """NLPs kept for re-solves (least recently used dropped): a replan reuses the final mesh's; the
     intermediate meshes of a refinement would otherwise hold memory (20 aircraft: ~300 MB each)."""
@@ -87,6 +91,9 @@ class OCPSolver:
         self.problem = problem
         self.options = options or OCPOptions()
         self._funcs = [phase_function(ph, problem.n_params) for ph in problem.phases]
+        self._nodes = ([node_functions(ph, f, problem.n_params) for ph, f in zip(problem.phases, self._funcs,
+                                                                                 strict=True)]
+                       if self.options.structured_derivatives else None)
         self._f_only = [_first_output(f) for f in self._funcs]
         self._f_maps: dict[tuple[int, int], ca.Function] = {}
         self._state_scales = [ph.scales()[0] for ph in problem.phases]
@@ -106,7 +113,7 @@ class OCPSolver:
         if tr is not None:
             self._cache.move_to_end(key)
             return tr, False
-        tr = Transcription(self.problem, meshes, self._funcs, self._nlp_opts[warm], self.watch)
+        tr = Transcription(self.problem, meshes, self._funcs, self._nlp_opts[warm], self.watch, self._nodes)
         self._cache[key] = tr
         while len(self._cache) > self.options.cached_nlps:  # the meshes passed on the way stay cheap to drop
             self._cache.popitem(last=False)

@@ -24,6 +24,7 @@ import casadi as ca
 import numpy as np
 
 from .mesh import MeshLayout, between_matrix, layout
+from .nodes import NodeFunctions, node_functions, scatter
 from .problem import Endpoint, Endpoints, Phase, PhaseGuess, PhaseMesh, Problem
 
 _log = logging.getLogger("mal_planner.ocp")
@@ -153,8 +154,26 @@ class _WatchCallback(ca.Callback):
         return [self._watch(float(arg[ca.nlpsol_out().index("f")]))]
 
 
+@dataclass
+class _NodeBlock:
+    """One phase's node functions mapped over its nodes, with where their inputs and outputs sit in the NLP."""
+
+    fns: NodeFunctions
+    args: list
+    """The mapped call's arguments (z, v, t0, tf, h, s, frac, w, p)."""
+    rows: np.ndarray
+    """(n_out, nk) NLP row of each output of each node (-1: none, e.g. the end node's defect)."""
+    cols: np.ndarray
+    """(n_in, nk) NLP variable of each differentiated input of each node (-1: none)."""
+
+
 class Transcription:
-    """The NLP of ``problem`` on ``meshes``; build once, then :meth:`solve` many times."""
+    """The NLP of ``problem`` on ``meshes``; build once, then :meth:`solve` many times.
+
+    With ``nodes`` (one :class:`NodeFunctions` per phase) IPOPT gets the constraint Jacobian and the Hessian of
+    the Lagrangian assembled from the nodes' own derivatives (see :mod:`mal_planner.ocp.nodes`); without,
+    CasADi differentiates the whole NLP.
+    """
 
     def __init__(
         self,
@@ -163,23 +182,37 @@ class Transcription:
         funcs: Sequence[ca.Function],
         solver_options: dict[str, Any],
         watch: IterationWatch | None = None,
+        nodes: Sequence[NodeFunctions] | None = None,
     ) -> None:
         t_start = time.perf_counter()
         self.problem = problem
         self.meshes = tuple(meshes)
         p = ca.MX.sym("p", problem.n_params)
-        w_parts: list[ca.SX] = []
+        w_parts: list[ca.MX] = []
         lbw: list[np.ndarray] = []
         ubw: list[np.ndarray] = []
-        g_parts: list[ca.SX] = []
+        g_parts: list[ca.MX] = []
         lbg: list[np.ndarray] = []
         ubg: list[np.ndarray] = []
         endpoints: list[Endpoint] = []
-        qs: list[ca.SX] = []
+        qs: list[ca.MX] = []
         self.slots: list[_PhaseSlots] = []
+        lin: list[tuple[np.ndarray, np.ndarray, np.ndarray]] = []  # constant Jacobian entries (rows, cols, values)
+        blocks: list[_NodeBlock] = []
+        ad_rows: list[tuple[int, ca.MX]] = []  # other nonlinear rows: (first row, expression)
         nw = 0
+        ng = 0
         cost = ca.MX(0)
-        for ph, mesh, fun in zip(problem.phases, self.meshes, funcs, strict=True):
+
+        def add_g(expr: ca.MX, lo: np.ndarray, hi: np.ndarray) -> int:
+            nonlocal ng
+            g_parts.append(expr)
+            lbg.append(np.asarray(lo, float).reshape(-1))
+            ubg.append(np.asarray(hi, float).reshape(-1))
+            first, ng = ng, ng + int(expr.numel())
+            return first
+
+        for i_ph, (ph, mesh, fun) in enumerate(zip(problem.phases, self.meshes, funcs, strict=True)):
             lay = layout(mesh)
             nx, nu, nk, nc = ph.nx, ph.nu, lay.n_nodes, lay.n_col
             b = ph.bounds()
@@ -194,21 +227,13 @@ class Transcription:
             # columns (measured: 17x less fill-in in the factorisation on the landing problem).
             h_s = ca.MX.sym(f"{ph.name}_h", nc)
             w_parts += [ca.vec(z), ca.vec(v), t0_s, tf_s, h_s]
-            t0, tf, h = st * t0_s, st * tf_s, st * h_s  # physical times
-            self.slots.append(
-                _PhaseSlots(
-                    lay,
-                    slice(nw, nw + nx * nk),
-                    slice(nw + nx * nk, nw + nx * nk + nu * nc),
-                    nw + nx * nk + nu * nc,
-                    nw + nx * nk + nu * nc + 1,
-                    sx,
-                    su,
-                    slice(nw + nx * nk + nu * nc + 2, nw + nx * nk + nu * nc + 2 + nc),
-                    st,
-                )
-            )
+            x0_col, u0_col = nw, nw + nx * nk
+            slot = _PhaseSlots(lay, slice(x0_col, u0_col), slice(u0_col, u0_col + nu * nc), u0_col + nu * nc,
+                               u0_col + nu * nc + 1, sx, su, slice(u0_col + nu * nc + 2, u0_col + nu * nc + 2 + nc),
+                               st)
+            self.slots.append(slot)
             nw += nx * nk + nu * nc + 2 + nc
+            t0, tf = st * t0_s, st * tf_s  # physical times
 
             xlb = np.tile((b["x_lb"] / sx)[:, None], (1, nk))
             xub = np.tile((b["x_ub"] / sx)[:, None], (1, nk))
@@ -219,77 +244,104 @@ class Transcription:
             ubw += [xub.ravel(order="F"), np.tile(b["u_ub"] / su, nc), [ph.t0_bounds[1] / st],
                     [ph.tf_bounds[1] / st], np.full(nc, np.inf)]
 
-            xs = ca.mtimes(ca.diag(ca.DM(sx)), z)
-            us = ca.mtimes(ca.diag(ca.DM(su)), v)
-            tn = t0 + (tf - t0) * ca.DM((lay.tau + 1.0) / 2.0).T
-            u_ext = ca.horzcat(us, us[:, nc - 1]) if nu else ca.MX(0, nk)
-            f_all, l_all, c_all = fun.map(nk)(xs, u_ext, tn, p)
-            g_parts += [h_s[0] - (tf_s - t0_s) / 2.0, h_s[1:] - h_s[:-1]]
-            lbg.append(np.zeros(nc))
-            ubg.append(np.zeros(nc))
-            defect = ca.mtimes(z, lay.D.T) - ca.repmat(h.T, nx, 1) * (
-                ca.mtimes(ca.diag(ca.DM(1.0 / sx)), f_all[:, :nc]) * ca.repmat(ca.DM(lay.frac).T, nx, 1)
-            )
-            g_parts.append(ca.vec(defect))
-            lbg.append(np.zeros(nx * nc))
-            ubg.append(np.zeros(nx * nc))
-            q = ca.mtimes(l_all[:, :nc] * h.T, ca.DM(lay.w))
-            npath = fun.size1_out(2)
+            # The nonlinear terms, node by node: the defect's dynamics part, the path constraints, the integrand.
+            fns = nodes[i_ph] if nodes is not None else node_functions(ph, fun, problem.n_params)
+            args = [z, ca.horzcat(v, v[:, nc - 1]) if nu else ca.MX(0, nk), t0_s, tf_s,
+                    ca.horzcat(h_s.T, ca.MX(1, 1)), ca.DM((lay.tau + 1.0) / 2.0).T, ca.DM(np.append(lay.frac, 0.0)).T,
+                    ca.DM(np.append(lay.w, 0.0)).T, p]
+            out_all, q_all = fns.out.map(nk)(*args)
+
+            h_row = add_g(ca.vertcat(h_s[0] - (tf_s - t0_s) / 2.0, h_s[1:] - h_s[:-1]), np.zeros(nc), np.zeros(nc))
+            hc = slot.h.start + np.arange(nc)
+            lin.append((np.concatenate([[h_row] * 3, h_row + np.repeat(np.arange(1, nc), 2)]),
+                        np.concatenate([[hc[0], slot.tf, slot.t0], np.column_stack([hc[1:], hc[:-1]]).ravel()]),
+                        np.concatenate([[1.0, -0.5, 0.5], np.tile([1.0, -1.0], nc - 1)])))
+            defect = ca.mtimes(z, lay.D.T) + out_all[:nx, :nc]
+            d_row = add_g(ca.vec(defect), np.zeros(nx * nc), np.zeros(nx * nc))
+            dk, dj = np.nonzero(np.asarray(ca.DM(lay.D)))
+            dv = np.asarray(ca.DM(lay.D))[dk, dj]
+            comp = np.arange(nx)
+            lin.append(((d_row + dk[:, None] * nx + comp).ravel(), (x0_col + dj[:, None] * nx + comp).ravel(),
+                        np.repeat(dv, nx)))
+            q = ca.sum2(q_all)
+            npath = fns.n_path
+            p_row = ng
             if npath:
                 sp = _bounds(ph.path_scale, npath, 1.0)
                 if np.any(sp <= 0.0):
                     raise ValueError(f"phase {ph.name!r}: path_scale must be positive")
-                g_parts.append(ca.vec(c_all * ca.repmat(ca.DM(1.0 / sp), 1, nk)))
-                lbg.append(np.tile(_bounds(ph.path_lb, npath, -np.inf) / sp, nk))
-                ubg.append(np.tile(_bounds(ph.path_ub, npath, np.inf) / sp, nk))
+                add_g(ca.vec(out_all[nx:, :]), np.tile(_bounds(ph.path_lb, npath, -np.inf) / sp, nk),
+                      np.tile(_bounds(ph.path_ub, npath, np.inf) / sp, nk))
+            k = np.arange(nk)
+            rows = np.full((nx + npath, nk), -1)
+            rows[:nx, :nc] = d_row + k[None, :nc] * nx + comp[:, None]
+            rows[nx:, :] = p_row + k[None, :] * npath + np.arange(npath)[:, None]
+            cols = np.full((nx + nu + 3, nk), -1)
+            cols[:nx, :] = x0_col + k[None, :] * nx + comp[:, None]
+            cols[nx:nx + nu, :] = u0_col + np.minimum(k, nc - 1)[None, :] * nu + np.arange(nu)[:, None]
+            cols[nx + nu, :], cols[nx + nu + 1, :] = slot.t0, slot.tf
+            cols[nx + nu + 2, :nc] = hc
+            blocks.append(_NodeBlock(fns, args, rows, cols))
+
             between = between_matrix(lay.mesh) if ph.bound_controls_between and nu else np.zeros((0, nc))
             if between.shape[0]:
-                g_parts.append(ca.vec(ca.mtimes(v, ca.sparsify(ca.DM(between.T)))))
-                lbg.append(np.tile(b["u_lb"] / su, between.shape[0]))
-                ubg.append(np.tile(b["u_ub"] / su, between.shape[0]))
+                b_row = add_g(ca.vec(ca.mtimes(v, ca.sparsify(ca.DM(between.T)))),
+                              np.tile(b["u_lb"] / su, between.shape[0]), np.tile(b["u_ub"] / su, between.shape[0]))
+                bb, bj = np.nonzero(between)
+                comp_u = np.arange(nu)
+                lin.append(((b_row + bb[:, None] * nu + comp_u).ravel(), (u0_col + bj[:, None] * nu + comp_u).ravel(),
+                            np.repeat(between[bb, bj], nu)))
+            us = ca.mtimes(ca.diag(ca.DM(su)), v)
             if ph.control_path is not None and nu:
                 u_sym = ca.SX.sym("u", nu)
                 c_fun = ca.Function(f"{ph.name}_cu", [u_sym], [_col(ph.control_path(u_sym))])
                 nc_rows = c_fun.size1_out(0)
                 u_at = us if not between.shape[0] else ca.horzcat(us, ca.mtimes(us, ca.sparsify(ca.DM(between.T))))
                 n_at = nc + between.shape[0]
-                g_parts.append(ca.vec(c_fun.map(n_at)(u_at)))
-                lbg.append(np.tile(_bounds(ph.control_path_lb, nc_rows, -np.inf), n_at))
-                ubg.append(np.tile(_bounds(ph.control_path_ub, nc_rows, np.inf), n_at))
-            g_parts.append(tf_s - t0_s)
-            lbg.append(np.array([ph.min_duration / st]))
-            ubg.append(np.array([ph.max_duration / st]))
+                expr = ca.vec(c_fun.map(n_at)(u_at))
+                ad_rows.append((add_g(expr, np.tile(_bounds(ph.control_path_lb, nc_rows, -np.inf), n_at),
+                                      np.tile(_bounds(ph.control_path_ub, nc_rows, np.inf), n_at)), expr))
+            dur_row = add_g(tf_s - t0_s, [ph.min_duration / st], [ph.max_duration / st])
+            lin.append((np.array([dur_row, dur_row]), np.array([slot.tf, slot.t0]), np.array([1.0, -1.0])))
+            xs = ca.mtimes(ca.diag(ca.DM(sx)), z)
             endpoints.append(Endpoint(t0, tf, xs[:, 0], xs[:, nk - 1], q))
             qs.append(q)
             if problem.lagrange_in_cost and ph.lagrange is not None:
                 cost = cost + q
 
         ends = Endpoints(endpoints, [ph.name for ph in problem.phases])
-        if problem.mayer is not None:
-            cost = cost + _col(problem.mayer(ends, p))
+        mayer = _col(problem.mayer(ends, p)) if problem.mayer is not None else ca.MX(0)
+        cost = cost + mayer
         if problem.events is not None:
             ev = _col(problem.events(ends, p))
             se = _bounds(problem.events_scale, ev.numel(), 1.0)
             if np.any(se <= 0.0):
                 raise ValueError("events_scale must be positive")
-            g_parts.append(ev * ca.DM(1.0 / se))
-            lbg.append(_bounds(problem.events_lb, ev.numel(), -np.inf) / se)
-            ubg.append(_bounds(problem.events_ub, ev.numel(), np.inf) / se)
+            expr = ev * ca.DM(1.0 / se)
+            ad_rows.append((add_g(expr, _bounds(problem.events_lb, ev.numel(), -np.inf) / se,
+                                  _bounds(problem.events_ub, ev.numel(), np.inf) / se), expr))
         for lk in problem.linkages:
             ia, ib = problem.phase_index(lk.phase_a), problem.phase_index(lk.phase_b)
             pa, pb = problem.phases[ia], problem.phases[ib]
             ea, eb = ends[ia], ends[ib]
-            sb_scale = self.slots[ib].sx
-            rows = []
+            sa_slot, sb_slot = self.slots[ia], self.slots[ib]
+            rows_, r_i, c_i, vals = [], [], [], []
             for sa, sb in lk.pairs:
-                jb = list(pb.states).index(sb)
-                rows.append((ea.xf[list(pa.states).index(sa)] - eb.x0[jb]) / float(sb_scale[jb]))
+                ja, jb = list(pa.states).index(sa), list(pb.states).index(sb)
+                scale = float(sb_slot.sx[jb])
+                rows_.append((ea.xf[ja] - eb.x0[jb]) / scale)
+                last_a = sa_slot.x.start + (sa_slot.layout.n_nodes - 1) * pa.nx + ja
+                r_i += [len(rows_) - 1] * 2
+                c_i += [last_a, sb_slot.x.start + jb]
+                vals += [float(sa_slot.sx[ja]) / scale, -1.0]
             if lk.time:
-                rows.append((ea.tf - eb.t0) / self.slots[ib].st)
-            if rows:
-                g_parts.append(ca.vertcat(*rows))
-                lbg.append(np.zeros(len(rows)))
-                ubg.append(np.zeros(len(rows)))
+                rows_.append((ea.tf - eb.t0) / sb_slot.st)
+                r_i += [len(rows_) - 1] * 2
+                c_i += [sa_slot.tf, sb_slot.t0]
+                vals += [sa_slot.st / sb_slot.st, -1.0]
+            if rows_:
+                first = add_g(ca.vertcat(*rows_), np.zeros(len(rows_)), np.zeros(len(rows_)))
+                lin.append((first + np.array(r_i), np.array(c_i), np.array(vals)))
 
         self.n_w = nw
         self.lbw = np.concatenate([np.asarray(a, dtype=float) for a in lbw])
@@ -297,17 +349,65 @@ class Transcription:
         self.lbg = np.concatenate(lbg)
         self.ubg = np.concatenate(ubg)
         w = ca.vertcat(*w_parts)
+        g = ca.vertcat(*g_parts)
         if not problem.objective_scale > 0.0:
             raise ValueError("objective_scale must be > 0")
         self.objective_scale = float(problem.objective_scale)
-        nlp = {"x": w, "p": p, "f": cost / self.objective_scale, "g": ca.vertcat(*g_parts)}
+        nlp = {"x": w, "p": p, "f": cost / self.objective_scale, "g": g}
         self.integrals = ca.Function("integrals", [w, p], [ca.vertcat(*qs)])
         options = dict(solver_options)
+        if nodes is not None:
+            options.update(self._derivatives(w, p, g, ng, lin, blocks, ad_rows, mayer))
         if watch is not None:
             self._watch_fn = watch.function(nw, int(self.lbg.size), problem.n_params)
             options["iteration_callback"] = self._watch_fn
         self.solver = ca.nlpsol("ocp", "ipopt", nlp, options)
         self.build_time = time.perf_counter() - t_start
+
+    def _derivatives(self, w: ca.MX, p: ca.MX, g: ca.MX, ng: int, lin, blocks: list[_NodeBlock],
+                     ad_rows: list[tuple[int, ca.MX]], mayer: ca.MX) -> dict[str, ca.Function]:
+        """``jac_g`` and ``hess_lag`` for nlpsol, assembled from the nodes' derivatives (see
+        :mod:`mal_planner.ocp.nodes`), constant entries, and CasADi's differentiation of the few other rows."""
+        nw = self.n_w
+        rows = np.concatenate([r for r, _, _ in lin])
+        cols = np.concatenate([c for _, c, _ in lin])
+        vals = np.concatenate([v for _, _, v in lin])
+        jac = ca.MX(ca.DM.triplet(rows.tolist(), cols.tolist(), vals.tolist(), ng, nw))
+        lam_f, lam_g = ca.MX.sym("lam_f"), ca.MX.sym("lam_g", ng)
+        lam_ext = ca.vertcat(lam_g, 0.0)
+        sigma = lam_f / self.objective_scale if self.problem.lagrange_in_cost else ca.MX(0)
+        hess = ca.MX(nw, nw)
+        for blk in blocks:
+            nk = blk.rows.shape[1]
+            jac_all = blk.fns.jac.map(nk)(*blk.args)
+            pat = blk.fns.jac.sparsity_out(0)
+            r_loc, c_loc = np.array(pat.row()), np.array(pat.get_col())
+            node = np.repeat(np.arange(nk), len(r_loc))
+            jac = jac + scatter(jac_all, blk.rows[np.tile(r_loc, nk), node], blk.cols[np.tile(c_loc, nk), node],
+                                (ng, nw))
+            idx = np.where(blk.rows >= 0, blk.rows, ng).ravel(order="F")
+            mu = ca.reshape(lam_ext.nz[idx.tolist()], blk.rows.shape[0], nk)
+            hess_all = blk.fns.hess.map(nk)(*blk.args, mu, sigma)
+            pat = blk.fns.hess.sparsity_out(0)
+            r_loc, c_loc = np.array(pat.row()), np.array(pat.get_col())
+            node = np.repeat(np.arange(nk), len(r_loc))
+            hess = hess + scatter(hess_all, blk.cols[np.tile(r_loc, nk), node], blk.cols[np.tile(c_loc, nk), node],
+                                  (nw, nw), upper=True)
+        if ad_rows:
+            first = np.concatenate([np.arange(r0, r0 + int(e.numel())) for r0, e in ad_rows])
+            expr = ca.vertcat(*[e for _, e in ad_rows])
+            select = ca.DM(ca.Sparsity.triplet(ng, len(first), first.tolist(), list(range(len(first)))),
+                           np.ones(len(first)))
+            jac = jac + ca.mtimes(select, ca.jacobian(expr, w))
+            lagrangian = ca.dot(lam_g[first.tolist()], expr) + lam_f * mayer / self.objective_scale
+        else:
+            lagrangian = lam_f * mayer / self.objective_scale
+        hess = hess + ca.triu(ca.hessian(lagrangian, w)[0])
+        return {
+            "jac_g": ca.Function("ocp_jac_g", [w, p], [g, jac], ["x", "p"], ["g", "jac_g_x"]),
+            "hess_lag": ca.Function("ocp_hess_lag", [w, p, lam_f, lam_g], [ca.triu(hess)],
+                                    ["x", "p", "lam_f", "lam_g"], ["triu_hess_gamma_x_x"]),
+        }
 
     # ------------------------------------------------------------------ guesses
     def initial_guess(self, guesses: Sequence[PhaseGuess | None] | GuessSource | None) -> np.ndarray:
