@@ -73,7 +73,7 @@ def build_parser() -> argparse.ArgumentParser:
                         help="one NLP for all aircraft (joint) or one per aircraft in landing order against the "
                              "plans of those before it (sequential); auto: sequential from 4 aircraft on "
                              "(default: auto)")
-    parser.add_argument("--mesh-tol", type=_positive_float, default=1e-6,
+    parser.add_argument("--mesh-tol", type=_positive_float, default=1e-5,
                         help="mesh error tolerance (default: %(default)s)")
     parser.add_argument("--no-refine", action="store_true",
                         help="solve on the initial mesh only (no hp refinement, no verification-driven refinement)")

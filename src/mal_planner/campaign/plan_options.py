@@ -10,7 +10,7 @@ if TYPE_CHECKING:
     from mal_planner.pipeline import PlanOptions
 
 DEFAULTS: dict[str, Any] = {"initializer": "multi-rrt", "seed": 0, "guess": "initializer",
-                            "free_landing_times": False, "mesh_tol": 1e-6, "refine": True, "time_limit_s": None}
+                            "free_landing_times": False, "mesh_tol": 1e-5, "refine": True, "time_limit_s": None}
 
 
 def add_plan_arguments(parser: argparse.ArgumentParser) -> None:

@@ -342,6 +342,16 @@ def _phase(ctx: _Context, k: int, who: list[int], mesh: PhaseMesh, guess_span: t
                 out.append(ca.if_else(t <= other.t_end, d2, LANDED_DISTANCE2 * sep2))
         return ca.vertcat(*out)
 
+    # The obstacles with some volume again at the middle of every chord between two nodes (a thin wall is
+    # crossed only at its gate event, where its phase ends: the state bounds keep each side of its plane).
+    bulky = [[ob for ob in relevant[j] if min(ob.semi_axes) >= scales.length_nm] for j in range(n_ac)]
+
+    def midpoint(x):
+        return ca.vertcat(*[ob.log_pnorm(x[5 * j], x[5 * j + 1], x[5 * j + 2]) / ob.p
+                            for j in range(n_ac) for ob in bulky[j]])
+
+    n_obstacle_rows = sum(len(b) for b in bulky)
+
     def bank(u):  # linear in the controls: enforced at the collocation points and between them
         return ca.vertcat(*[bank_limit_residuals(u[2 * j], u[2 * j + 1], limits[j].bank_angle_max - margins.bank_rad)
                             for j in range(n_ac)])
@@ -384,6 +394,8 @@ def _phase(ctx: _Context, k: int, who: list[int], mesh: PhaseMesh, guess_span: t
         bound_controls_between=True,
         control_path=bank,
         control_path_ub=0.0,
+        midpoint_path=midpoint if n_obstacle_rows else None,
+        midpoint_path_lb=margins.clearance,
         state_scale=[v for _ in who for v in (scales.length_nm, scales.length_nm, scales.length_nm, 1.0, 1.0)],
         time_scale=scales.time_s,
         path_scale=p_scale,

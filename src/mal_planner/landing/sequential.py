@@ -137,9 +137,13 @@ class SequentialOptimizer:
             if before is not None and before.layout.signature() != opt.layout.signature():
                 before = None
             params = opt.problem.params(sub, [guess.landing_time])
-            if part is not None:  # intruders added: warm, on the mesh already refined
+            if part is not None:  # intruders added: warm, on the mesh already refined; else from the guess
                 sol = opt.solver.solve(params, guess=part.solution, meshes=part.solution.meshes, warm=True,
                                        refine_mesh=False, deadline=deadline)
+                if not sol.success:
+                    log.info("%s: the warm re-solve against them failed (%s); solving from the guess", guess.callsign,
+                             sol.status)
+                    sol = opt.solver.solve(params, deadline=deadline)
             elif before is not None and mesh is not None:  # verification-driven refinement
                 sol = opt.solver.solve(params, guess=before.solution, meshes=mesh, warm=True, deadline=deadline)
             elif before is not None:  # a replan: the previous plan shifted in time, on its mesh
@@ -147,6 +151,9 @@ class SequentialOptimizer:
                                        meshes=before.solution.meshes, warm=True, deadline=deadline)
             else:
                 sol = opt.solver.solve(params, deadline=deadline)
+            if not sol.success and part is None and before is not None:
+                log.info("%s: the warm start failed (%s); solving from the guess", guess.callsign, sol.status)
+                sol = opt.solver.solve(params, meshes=mesh, deadline=deadline)
             part = opt._result(sol, sol.solve_time, sum(m.build_time for m in sol.mesh_history),
                                [guess.landing_time])
             if not part.success:

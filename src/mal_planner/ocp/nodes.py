@@ -37,15 +37,9 @@ class NodeFunctions:
     nx: int
     nu: int
     n_path: int
-
-    @property
-    def n_in(self) -> int:
-        """Differentiated inputs: z, v, t0, tf, h."""
-        return self.nx + self.nu + 3
-
-    @property
-    def n_out(self) -> int:
-        return self.nx + self.n_path
+    n_in: int
+    """Differentiated inputs: z, v, t0, tf, h (a node), or z_a, z_b (a midpoint)."""
+    n_out: int
 
 
 def node_functions(phase: Phase, fun: ca.Function, n_params: int) -> NodeFunctions:
@@ -76,8 +70,32 @@ def node_functions(phase: Phase, fun: ca.Function, n_params: int) -> NodeFunctio
         out=ca.Function(f"{phase.name}_node", args, [out, q]),
         jac=ca.Function(f"{phase.name}_node_jac", args, [ca.jacobian(out, inputs)]),
         hess=ca.Function(f"{phase.name}_node_hess", [*args, mu, sigma], [hess]),
-        nx=nx, nu=nu, n_path=n_path,
+        nx=nx, nu=nu, n_path=n_path, n_in=nx + nu + 3, n_out=nx + n_path,
     )
+
+
+def midpoint_functions(phase: Phase) -> NodeFunctions | None:
+    """``out(z_a, z_b) -> c((x_a + x_b) / 2)``: the phase's ``midpoint_path`` at the middle of the chord between two
+    consecutive nodes, with its Jacobian and Hessian in (z_a, z_b); None without one."""
+    if phase.midpoint_path is None:
+        return None
+    nx = phase.nx
+    sx = ca.DM(phase.scales()[0])
+    za, zb = ca.SX.sym("za", nx), ca.SX.sym("zb", nx)
+    out = _col_sx(phase.midpoint_path(sx * (za + zb) / 2.0))
+    n = out.numel()
+    inputs = ca.vertcat(za, zb)
+    mu, sigma = ca.SX.sym("mu", n), ca.SX.sym("sigma")
+    return NodeFunctions(
+        out=ca.Function(f"{phase.name}_mid", [za, zb], [out]),
+        jac=ca.Function(f"{phase.name}_mid_jac", [za, zb], [ca.jacobian(out, inputs)]),
+        hess=ca.Function(f"{phase.name}_mid_hess", [za, zb, mu, sigma], [ca.hessian(ca.dot(mu, out), inputs)[0]]),
+        nx=nx, nu=0, n_path=n, n_in=2 * nx, n_out=n,
+    )
+
+
+def _col_sx(value) -> ca.SX:
+    return ca.vertcat(*value) if isinstance(value, list | tuple) else value
 
 
 def scatter(values: ca.MX, rows: np.ndarray, cols: np.ndarray, shape: tuple[int, int],
@@ -97,7 +115,7 @@ def scatter(values: ca.MX, rows: np.ndarray, cols: np.ndarray, shape: tuple[int,
     unique, first, group = np.unique(key, return_index=True, return_inverse=True)
     sparsity = ca.Sparsity.triplet(shape[0], shape[1], r[first].tolist(), c[first].tolist())
     if len(unique) == len(key):
-        return ca.MX(sparsity, values.nz[src.tolist()])
+        return ca.MX(sparsity, ca.vec(values.nz[src.tolist()]))  # vec: the nonzeros of a row come as a row
     summing = ca.DM(ca.Sparsity.triplet(len(unique), values.nnz(), group.tolist(), src.tolist()),
                     np.ones(len(src)))
-    return ca.MX(sparsity, ca.mtimes(summing, values.nz[:]))
+    return ca.MX(sparsity, ca.mtimes(summing, ca.vec(values.nz[:])))

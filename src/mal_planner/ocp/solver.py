@@ -12,7 +12,7 @@ import casadi as ca
 import numpy as np
 
 from .mesh import estimate_errors, refine, segment_errors
-from .nodes import node_functions
+from .nodes import midpoint_functions, node_functions
 from .problem import PhaseGuess, PhaseMesh, Problem
 from .solution import MeshIteration, OCPSolution, PhaseSolution
 from .transcription import IterationWatch, Transcription, phase_function
@@ -94,6 +94,7 @@ class OCPSolver:
         self._nodes = ([node_functions(ph, f, problem.n_params) for ph, f in zip(problem.phases, self._funcs,
                                                                                  strict=True)]
                        if self.options.structured_derivatives else None)
+        self._midpoints = [midpoint_functions(ph) for ph in problem.phases]
         self._f_only = [_first_output(f) for f in self._funcs]
         self._f_maps: dict[tuple[int, int], ca.Function] = {}
         self._state_scales = [ph.scales()[0] for ph in problem.phases]
@@ -113,7 +114,8 @@ class OCPSolver:
         if tr is not None:
             self._cache.move_to_end(key)
             return tr, False
-        tr = Transcription(self.problem, meshes, self._funcs, self._nlp_opts[warm], self.watch, self._nodes)
+        tr = Transcription(self.problem, meshes, self._funcs, self._nlp_opts[warm], self.watch, self._nodes,
+                           self._midpoints)
         self._cache[key] = tr
         while len(self._cache) > self.options.cached_nlps:  # the meshes passed on the way stay cheap to drop
             self._cache.popitem(last=False)

@@ -24,7 +24,7 @@ import casadi as ca
 import numpy as np
 
 from .mesh import MeshLayout, between_matrix, layout
-from .nodes import NodeFunctions, node_functions, scatter
+from .nodes import NodeFunctions, midpoint_functions, node_functions, scatter
 from .problem import Endpoint, Endpoints, Phase, PhaseGuess, PhaseMesh, Problem
 
 _log = logging.getLogger("mal_planner.ocp")
@@ -183,6 +183,7 @@ class Transcription:
         solver_options: dict[str, Any],
         watch: IterationWatch | None = None,
         nodes: Sequence[NodeFunctions] | None = None,
+        midpoints: Sequence[NodeFunctions | None] | None = None,
     ) -> None:
         t_start = time.perf_counter()
         self.problem = problem
@@ -282,6 +283,17 @@ class Transcription:
             cols[nx + nu, :], cols[nx + nu + 1, :] = slot.t0, slot.tf
             cols[nx + nu + 2, :nc] = hc
             blocks.append(_NodeBlock(fns, args, rows, cols))
+            mid = midpoints[i_ph] if midpoints is not None else midpoint_functions(ph)
+            if mid is not None:
+                pairs = [z[:, :-1], z[:, 1:]]
+                m_row = add_g(ca.vec(mid.out.map(nk - 1)(*pairs)),
+                              np.tile(_bounds(ph.midpoint_path_lb, mid.n_out, -np.inf), nk - 1),
+                              np.tile(_bounds(ph.midpoint_path_ub, mid.n_out, np.inf), nk - 1))
+                kk = np.arange(nk - 1)
+                m_cols = np.vstack([x0_col + kk[None, :] * nx + comp[:, None],
+                                    x0_col + (kk[None, :] + 1) * nx + comp[:, None]])
+                blocks.append(_NodeBlock(mid, pairs, m_row + kk[None, :] * mid.n_out + np.arange(mid.n_out)[:, None],
+                                         m_cols))
 
             between = between_matrix(lay.mesh) if ph.bound_controls_between and nu else np.zeros((0, nc))
             if between.shape[0]:

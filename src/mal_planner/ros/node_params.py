@@ -83,7 +83,7 @@ PARAMETERS: dict[str, tuple[Any, Check, str]] = {
     "verify": (True, _bool, "verify optimized trajectories (separation, limits, re-integration)"),
     "guess": ("initializer", _choice("initializer", "straight"), "optimizer initial guess"),
     "fixed_landing_times": (True, _bool, "fix the landing times (scenario's, else the sequencer's + margin)"),
-    "mesh_tol": (1e-6, _float(positive=True), "mesh refinement tolerance"),
+    "mesh_tol": (1e-5, _float(positive=True), "mesh refinement tolerance"),
     "refine": (True, _bool, "hp mesh refinement"),
     "segments": (4, _int(1), "mesh segments per phase"),
     "degree": (6, _int(2), "collocation degree per segment"),
