@@ -22,7 +22,7 @@ def test_initial_only_writes_json_and_figures(tmp_path: Path, capsys) -> None:
     assert [a["callsign"] for a in doc["aircraft"]] == doc["landing_order"] == ["A1", "A2", "A3"]
     first = doc["aircraft"][0]
     assert first["initial"]["waypoint"] is None and first["order"] == 1
-    assert doc["aircraft"][1]["initial"]["waypoint_index"] is not None
+    assert any(a["initial"]["waypoint_index"] is not None for a in doc["aircraft"][1:])  # a later one is stretched
     assert set(first["trajectory"]) >= {"t", "x", "y", "z", "gamma", "heading"}
     for name in ("initial_paths_3d", "initial_x", "initial_y", "initial_z"):
         assert (tmp_path / f"{name}.png").stat().st_size > 10_000
@@ -34,7 +34,7 @@ def test_full_run_reproduces_the_thesis(tmp_path: Path, capsys) -> None:
     assert "verified" in out and "NOT verified" not in out
     doc = json.loads((tmp_path / "plan.json").read_text())
     assert doc["status"] == "optimal" and doc["verified"] is True
-    assert doc["optimizer"]["mesh_iterations"][-1]["max_error"] <= 1e-6
+    assert doc["optimizer"]["mesh_iterations"][-1]["max_error"] <= 1e-5  # the default mesh tolerance
     traj = doc["aircraft"][0]["trajectory"]
     assert {"n_h", "n_v", "phase"} <= set(traj) and len(traj["t"]) == len(traj["n_h"])
     assert doc["verification"]["pairs"] and doc["verification"]["verified"] is True

@@ -58,7 +58,7 @@ def test_pairs_screened_out_are_added_back_when_they_come_close(caplog, strategy
     the optimizer then adds those and re-solves, and the plan is verified (the verification checks every
     pair)."""
     scenario = load_scenario("scenarios/five_aircraft.yaml")
-    nothing = PairScreen(near=-math.inf, recheck=1.0 / 3.0)  # 0.1 nm at the thesis's turn radius
+    nothing = PairScreen(near=-math.inf, near_separations=-math.inf, recheck=10.0 / 3.0)  # re-check within 1 nm
     landing = replace(LandingOptions(), pair_screen=nothing, strategy=strategy)
     planner = Planner(PlanOptions(seed=0, landing=landing))
     with caplog.at_level(logging.INFO, logger="mal_planner.optimizer"):

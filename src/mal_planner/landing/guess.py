@@ -13,6 +13,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from mal_planner.obstacles import Gate
+from mal_planner.scales import level_turn_radius
 from mal_planner.scenario import Aircraft, Scenario
 
 
@@ -65,8 +66,10 @@ def _smooth_angles(states: np.ndarray, window: int) -> np.ndarray:
 
 
 def _make_guess(aircraft: Aircraft, t: np.ndarray, states: np.ndarray, gate: Gate | None,
-                landing_time: float, smooth_s: float = 8.0) -> AircraftGuess:
-    """Scale the time axis so the guess lands at ``landing_time``; start from the true initial state."""
+                landing_time: float) -> AircraftGuess:
+    """Scale the time axis so the guess lands at ``landing_time``; start from the true initial state, whose
+    attitude blends into the path's over one turn time of the aircraft (thesis: 8 s)."""
+    smooth_s = level_turn_radius(aircraft) / aircraft.speed
     scale = landing_time / t[-1]
     t = t * scale
     states = states.copy()
@@ -101,26 +104,34 @@ def _path_states(points: np.ndarray, speed: float, dt: float) -> tuple[np.ndarra
     return s / speed, np.column_stack([pos, gamma, heading])
 
 
-def guess_from_initial_plan(scenario: Scenario, trajectories: Sequence, landing_times: Sequence[float],
-                            dt: float = 1.0) -> list[AircraftGuess]:
-    """Guesses from the initializer's paths (objects with ``callsign`` and ``waypoints``) in landing order."""
+SAMPLES_PER_TURN_TIME = 7.5
+"""Guess samples per turn time of the aircraft (thesis: one a second)."""
+
+
+def guess_from_initial_plan(scenario: Scenario, trajectories: Sequence, landing_times: Sequence[float]
+                            ) -> list[AircraftGuess]:
+    """Guesses from the initializer's paths (objects with ``callsign`` and ``waypoints``) in landing order.
+
+    (Rounding the paths' corners at the turn radius was tried: 24 % more planning time on thesis-size and real-size
+    scenarios, so the corners stay and the angles are smoothed over a turn time, see :func:`_make_guess`.)"""
     gate = scenario.gates[0] if scenario.gates else None
     out = []
     for traj, t_land in zip(trajectories, landing_times, strict=True):
         ac = scenario.aircraft_by_callsign(traj.callsign)
-        t, states = _path_states(np.asarray(traj.waypoints, float), ac.speed, dt)
+        t, states = _path_states(np.asarray(traj.waypoints, float), ac.speed,
+                                 level_turn_radius(ac) / ac.speed / SAMPLES_PER_TURN_TIME)
         out.append(_make_guess(ac, t, states, gate, t_land))
     return out
 
 
-def straight_line_guess(scenario: Scenario, callsigns: Sequence[str], landing_times: Sequence[float],
-                        dt: float = 1.0) -> list[AircraftGuess]:
+def straight_line_guess(scenario: Scenario, callsigns: Sequence[str], landing_times: Sequence[float]
+                        ) -> list[AircraftGuess]:
     """Naive guesses: straight from each start to the runway, ignoring obstacles and gates."""
     gate = scenario.gates[0] if scenario.gates else None
     out = []
     for cs, t_land in zip(callsigns, landing_times, strict=True):
         ac = scenario.aircraft_by_callsign(cs)
         points = np.vstack([ac.position, scenario.runway_state[:3]])
-        t, states = _path_states(points, ac.speed, dt)
+        t, states = _path_states(points, ac.speed, level_turn_radius(ac) / ac.speed / SAMPLES_PER_TURN_TIME)
         out.append(_make_guess(ac, t, states, gate, t_land))
     return out

@@ -32,8 +32,10 @@ class PairScreen:
     the thesis values they were tuned as are given in brackets."""
 
     near: float = 10.0 / 3.0
-    """A pair is constrained where the guess brings it within the separation plus this, or plus one separation
-    if that is more (1 nm; at a terminal area's size the optimized paths moved 3 nm from the guesses)."""
+    """A pair is constrained where the guess brings it within the separation plus this (1 nm) ..."""
+    near_separations: float = 1.0
+    """... or plus this many separations if that is more (at a terminal area's size the optimized paths moved 3 nm
+    from the guesses)."""
     slack: float = 2.5
     """The phase's guessed time span is widened by this on both sides, events move in the solve (20 s)."""
     recheck: float = 2.0 / 3.0
@@ -42,7 +44,7 @@ class PairScreen:
     """Re-solves with added pairs, at most."""
 
     def near_nm(self, scales: Scales) -> float:
-        return max(scales.lengths(self.near), scales.separation_nm)
+        return max(scales.lengths(self.near), self.near_separations * scales.separation_nm)
 
     def slack_s(self, scales: Scales) -> float:
         return scales.seconds(self.slack)

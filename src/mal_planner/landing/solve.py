@@ -85,8 +85,8 @@ class LandingOptions:
     max_nlp_iterations: int = 3000
     refine: bool = True
     output_dt: float | None = None
-    """Sampling step (s) of the output trajectories (dense samples of the solution's interpolants); None: a
-    thirtieth of the scenario's turn time (thesis: 0.25 s)."""
+    """Sampling step (s) of the output trajectories (dense samples of the solution's interpolants); None: a round
+    step near a thirtieth of the scenario's turn time (thesis: 0.25 s)."""
     control_tol: float = 1e-5
     """The published controls, linear between samples, stay this close (load factor) to the solution's control
     interpolant at every midpoint: where they do not, samples are added (see :func:`published_times`)."""
@@ -225,8 +225,9 @@ class LandingOptimizer:
 
     @property
     def output_dt(self) -> float:
-        """Sampling step of the published trajectories (s)."""
-        return self.options.output_dt or self.scales.seconds(OUTPUT_STEP_TURN_TIMES)
+        """Sampling step of the published trajectories (s): ``options.output_dt``, or the round step (1, 2, 2.5 or 5
+        times a power of ten) nearest below a thirtieth of the turn time (thesis: 0.25 s; terminal area: 0.25 s)."""
+        return self.options.output_dt or round_step(self.scales.seconds(OUTPUT_STEP_TURN_TIMES))
 
     @property
     def refine_pad_s(self) -> float:
@@ -359,6 +360,12 @@ class LandingOptimizer:
             nlp_iterations=sol.iterations, mesh_history=list(sol.mesh_history), layout=lay, solution=sol,
             phase_names=[lay.phase_name(k) for k in range(lay.n_phases)],
             required_landing_times=dict(zip(lay.callsigns, required, strict=True)))
+
+
+def round_step(step: float) -> float:
+    """The largest of 1, 2, 2.5 and 5 times a power of ten that is at most ``step`` (samples on a round grid)."""
+    power = 10.0 ** math.floor(math.log10(step))
+    return max(m * power for m in (1.0, 2.0, 2.5, 5.0) if m * power <= step * (1.0 + 1e-12))
 
 
 def within_limits(u: np.ndarray, limits) -> np.ndarray:
