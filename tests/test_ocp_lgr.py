@@ -79,9 +79,9 @@ def test_error_estimate_zero_for_polynomial_state_and_refine_rules() -> None:
     errs = estimate_errors(lay, 0.0, 1.0, x, np.zeros((0, lay.n_col)), lambda xx, uu, tt: tt[None, :] ** 2)
     assert errs.max() < 1e-13
     m = refine(PhaseMesh.uniform(2, 4), np.array([1e-3, 1e-9]), 1e-6, 3, 10)
-    assert m.degrees == (9, 4)  # P = ceil(log(1e3)/log(4)) = 5
+    assert m.degrees == (10, 4)  # P = ceil(log(1e3)/log(4)) + 1 = 6
     m = refine(PhaseMesh.uniform(2, 8), np.array([1e-1, 1e-9]), 1e-6, 3, 10)
-    # P = ceil(log(1e5)/log(8)) = 6 -> 14 > 10: split into two halves of degree 8 (not five of degree 3).
+    # P = ceil(log(1e5)/log(8)) + 1 = 7 -> 15 > 10: split into two halves of degree 8 (not five of degree 3).
     assert m.degrees == (8, 8, 8) and np.allclose(m.breaks, [0.0, 0.25, 0.5, 1.0])
 
 

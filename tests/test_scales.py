@@ -27,7 +27,7 @@ def test_thesis_scales_give_back_the_numbers_tuned_there() -> None:
     assert margins.airspace_nm == pytest.approx(0.001, rel=0.01)
     tol = Tolerances.for_scenario(thesis)
     assert tol.deviation_nm == pytest.approx(Tolerances().deviation_nm, rel=0.01)
-    assert tol.sample_dt == pytest.approx(0.05, rel=0.01) and tol.integration_step_s == pytest.approx(0.25, rel=0.01)
+    assert tol.sample_dt == pytest.approx(0.05, rel=0.01) and tol.integration_step_s == pytest.approx(0.5, rel=0.01)
     screen = PairScreen()
     assert screen.near_nm(scales) == pytest.approx(1.0, rel=0.01)
     assert screen.recheck_nm(scales) == pytest.approx(0.2, rel=0.01)

@@ -326,13 +326,8 @@ def _phase(ctx: _Context, k: int, who: list[int], mesh: PhaseMesh, guess_span: t
             total += g_rate**2 + h_rate**2
         return total
 
-    def path(x, u, t, p):
+    def separations(x, t) -> list:
         out = []
-        for j in range(n_ac):
-            px, py, pz = x[5 * j], x[5 * j + 1], x[5 * j + 2]
-            # ln(F)/p = ln of the p-norm: the thesis's constraint divided by p, the same feasible set with
-            # p times smaller derivatives (p = 50 for the wall).
-            out += [ob.log_pnorm(px, py, pz) / ob.p for ob in relevant[j]]
         for a, b in pairs:
             d = x[5 * a:5 * a + 3] - x[5 * b:5 * b + 3]
             out.append(ca.sumsqr(d))
@@ -340,17 +335,27 @@ def _phase(ctx: _Context, k: int, who: list[int], mesh: PhaseMesh, guess_span: t
             for other in ctx.intruders:  # once it has landed, an intruder no longer counts
                 d2 = ca.sumsqr(x[5 * j:5 * j + 3] - other.position(t))
                 out.append(ca.if_else(t <= other.t_end, d2, LANDED_DISTANCE2 * sep2))
-        return ca.vertcat(*out)
+        return out
 
-    # The obstacles with some volume again at the middle of every chord between two nodes (a thin wall is
-    # crossed only at its gate event, where its phase ends: the state bounds keep each side of its plane).
+    def path(x, u, t, p):
+        out = []
+        for j in range(n_ac):
+            px, py, pz = x[5 * j], x[5 * j + 1], x[5 * j + 2]
+            # ln(F)/p = ln of the p-norm: the thesis's constraint divided by p, the same feasible set with
+            # p times smaller derivatives (p = 50 for the wall).
+            out += [ob.log_pnorm(px, py, pz) / ob.p for ob in relevant[j]]
+        return ca.vertcat(*out, *separations(x, t))
+
+    # The obstacles with some volume and the separations again at the middle of every chord between two nodes (a
+    # thin wall is crossed only at its gate event, where its phase ends: the state bounds keep each side of its
+    # plane).
     bulky = [[ob for ob in relevant[j] if min(ob.semi_axes) >= scales.length_nm] for j in range(n_ac)]
 
-    def midpoint(x):
+    def midpoint(x, t, p):
         return ca.vertcat(*[ob.log_pnorm(x[5 * j], x[5 * j + 1], x[5 * j + 2]) / ob.p
-                            for j in range(n_ac) for ob in bulky[j]])
+                            for j in range(n_ac) for ob in bulky[j]], *separations(x, t))
 
-    n_obstacle_rows = sum(len(b) for b in bulky)
+    n_bulky = sum(len(b) for b in bulky)
 
     def bank(u):  # linear in the controls: enforced at the collocation points and between them
         return ca.vertcat(*[bank_limit_residuals(u[2 * j], u[2 * j + 1], limits[j].bank_angle_max - margins.bank_rad)
@@ -394,8 +399,9 @@ def _phase(ctx: _Context, k: int, who: list[int], mesh: PhaseMesh, guess_span: t
         bound_controls_between=True,
         control_path=bank,
         control_path_ub=0.0,
-        midpoint_path=midpoint if n_obstacle_rows else None,
-        midpoint_path_lb=margins.clearance,
+        midpoint_path=midpoint if n_bulky + n_sep else None,
+        midpoint_path_lb=[margins.clearance] * n_bulky + [sep2] * n_sep,
+        midpoint_path_scale=[1.0] * n_bulky + [sep2] * n_sep,
         state_scale=[v for _ in who for v in (scales.length_nm, scales.length_nm, scales.length_nm, 1.0, 1.0)],
         time_scale=scales.time_s,
         path_scale=p_scale,

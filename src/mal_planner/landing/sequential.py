@@ -51,11 +51,15 @@ before it (the joint NLP of everyone is the pipeline's last resort):
 
 * *another guess*: the initializer stretches the aircraft's path anew, clear of the plans made so far (the
   first guess only kept clear of the others' guesses);
-* *later landing*: where the schedule (not the scenario) set its landing time, the optimizer may land it later
-  (the aircraft after it move back by as much);
+* *later landing*: where the schedule (not the scenario) set its landing time, it lands later, by half a landing
+  spacing, then one, then two (the aircraft after it move back by as much);
 * *give way*: its plan alone (no intruders) shows which earlier aircraft block it; the last of them is planned
   again with that plan as an intruder, then the aircraft again against everyone;
 * *swap with the previous*: it takes the previous aircraft's landing slot, and that one is planned after it."""
+
+
+LATER_BY_SPACINGS = (0.5, 1.0, 2.0)
+"""The delays the recovery 'later landing' tries, in landing spacings."""
 
 
 @dataclass
@@ -172,7 +176,9 @@ class SequentialOptimizer:
 
     def _solve_all(self, scenario: Scenario, guesses: Sequence[AircraftGuess], previous: list[LandingResult] | None,
                    meshes: dict | None, deadline, only: set[str] | None = None) -> LandingResult:
-        options = replace(self.options, pair_screen=None)
+        options = replace(self.options, pair_screen=None,
+                          max_nlp_iterations=min(self.options.max_nlp_iterations,
+                                                 self.options.sequential_max_iterations))
         order = list(guesses)
         parts: list[LandingResult] = []
         before_by_callsign = {p.trajectories[0].callsign: p for p in previous or [] if p.trajectories}
@@ -199,8 +205,13 @@ class SequentialOptimizer:
                 if guess.landing_time < earliest:
                     guess = order[i] = _retimed(guess, earliest)
             mesh = None if meshes is None else meshes.get(guess.callsign)
-            part = self._solve_one(scenario, guess, flown, before_by_callsign.get(guess.callsign), mesh, deadline,
-                                   earliest, options)
+            # A refinement re-plans some aircraft with the others' plans fixed: the later ones too, whose plans kept
+            # clear of this one's former path only (a refined path came 2.96 nm to a later plan, against 3 nm).
+            later = [] if only is None else [
+                (cs, p.trajectories[0].t, p.trajectories[0].positions) for cs, p in before_by_callsign.items()
+                if cs not in {f[0] for f in flown} and cs != guess.callsign]
+            part = self._solve_one(scenario, guess, flown + later, before_by_callsign.get(guess.callsign), mesh,
+                                   deadline, earliest, options)
             if not part.success and meshes is None:
                 log.warning("sequential: %s found no plan (%s); trying to recover", guess.callsign, part.status)
                 step = self._recover(scenario, order, i, parts, flown, recoveries, deadline, options)
@@ -263,14 +274,17 @@ class SequentialOptimizer:
             return part
 
         def later_landing() -> LandingResult | None:
-            free = replace(options, fixed_landing_times=False)
-            part = self._solve_one(scenario, order[i], flown, None, None, deadline, guess.landing_time, free)
-            if part.success:
+            part = None
+            for delay in LATER_BY_SPACINGS:  # fixed times a little later: cheaper and surer than a free-time NLP
+                later = _retimed(order[i], guess.landing_time + delay * scenario.landing_spacing_s)
+                part = self._solve_one(scenario, later, flown, None, None, deadline, None, options)
+                if part.success or (deadline is not None and deadline.expired()):
+                    break
+            if part is not None and part.success:
                 landed = self._landed(part)
-                part.required_landing_times[cs] = landed  # the new slot, as if scheduled so
                 order[i] = _retimed(order[i], landed)
                 for j in range(i + 1, len(order)):  # those after it move back by as much
-                    follows = self._landed(part) + (j - i) * scenario.landing_spacing_s
+                    follows = landed + (j - i) * scenario.landing_spacing_s
                     if order[j].landing_time < follows and \
                             scenario.aircraft_by_callsign(order[j].callsign).landing_time is None:
                         order[j] = _retimed(order[j], follows)

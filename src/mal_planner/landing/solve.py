@@ -68,7 +68,7 @@ class LandingOptions:
     """Initial mesh without ``segment_turn_times``: this many segments per phase ..."""
     degree: int = 6
     """... of this many collocation points each."""
-    segment_turn_times: float | None = 2.5
+    segment_turn_times: float | None = 4.0
     """About one initial segment per this many turn times of (guessed) phase duration (thesis: one per 20 s);
     None: ``segments`` in every phase. Short phases then start on small meshes (measured: thesis 3.5 -> 2.2 s,
     five aircraft 15 -> 7 s)."""
@@ -99,6 +99,9 @@ class LandingOptions:
     fixed plans of those before it (:mod:`mal_planner.landing.sequential`); auto: sequential from
     ``sequential_from`` aircraft on, joint below (the thesis's 3 aircraft are planned jointly)."""
     sequential_from: int = 4
+    sequential_max_iterations: int = 400
+    """IPOPT iterations of one aircraft's NLP in the sequential strategy, at most: its solves take 20-100; one that
+    runs on is stuck (a terminal-area case took 1,270 for a plan its recovery then found in 60)."""
     pair_screen: PairScreen | None = field(default_factory=PairScreen)
     """Separation constraints only for pairs that can come close (see :mod:`mal_planner.landing.pairs`);
     None: every pair in every phase."""
@@ -226,7 +229,7 @@ class LandingOptimizer:
     @property
     def output_dt(self) -> float:
         """Sampling step of the published trajectories (s): ``options.output_dt``, or the round step (1, 2, 2.5 or 5
-        times a power of ten) nearest below a thirtieth of the turn time (thesis: 0.25 s; terminal area: 0.25 s)."""
+        times a power of ten) nearest to a thirtieth of the turn time (thesis: 0.25 s; terminal area: 0.5 s)."""
         return self.options.output_dt or round_step(self.scales.seconds(OUTPUT_STEP_TURN_TIMES))
 
     @property
@@ -363,9 +366,9 @@ class LandingOptimizer:
 
 
 def round_step(step: float) -> float:
-    """The largest of 1, 2, 2.5 and 5 times a power of ten that is at most ``step`` (samples on a round grid)."""
+    """The one of 1, 2, 2.5 and 5 times a power of ten nearest to ``step`` (by ratio): samples on a round grid."""
     power = 10.0 ** math.floor(math.log10(step))
-    return max(m * power for m in (1.0, 2.0, 2.5, 5.0) if m * power <= step * (1.0 + 1e-12))
+    return min((m * power for m in (1.0, 2.0, 2.5, 5.0, 10.0)), key=lambda c: abs(math.log(c / step)))
 
 
 def within_limits(u: np.ndarray, limits) -> np.ndarray:

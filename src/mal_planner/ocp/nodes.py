@@ -74,23 +74,30 @@ def node_functions(phase: Phase, fun: ca.Function, n_params: int) -> NodeFunctio
     )
 
 
-def midpoint_functions(phase: Phase) -> NodeFunctions | None:
-    """``out(z_a, z_b) -> c((x_a + x_b) / 2)``: the phase's ``midpoint_path`` at the middle of the chord between two
-    consecutive nodes, with its Jacobian and Hessian in (z_a, z_b); None without one."""
+def midpoint_functions(phase: Phase, n_params: int) -> NodeFunctions | None:
+    """``out(z_a, z_b, t0, tf, s, p) -> c(x, t, p) / scale`` at the middle of the chord between two consecutive
+    nodes (``x = sx (z_a + z_b) / 2``, ``t = T (t0 + (tf - t0) s)``, ``s`` the middle's place in the phase): the
+    phase's ``midpoint_path``, with its Jacobian and Hessian in (z_a, z_b, t0, tf); None without one."""
     if phase.midpoint_path is None:
         return None
     nx = phase.nx
     sx = ca.DM(phase.scales()[0])
+    st = float(phase.time_scale)
     za, zb = ca.SX.sym("za", nx), ca.SX.sym("zb", nx)
-    out = _col_sx(phase.midpoint_path(sx * (za + zb) / 2.0))
-    n = out.numel()
-    inputs = ca.vertcat(za, zb)
+    t0, tf, s, p = ca.SX.sym("t0"), ca.SX.sym("tf"), ca.SX.sym("s"), ca.SX.sym("p", n_params)
+    raw = _col_sx(phase.midpoint_path(sx * (za + zb) / 2.0, st * (t0 + (tf - t0) * s), p))
+    n = raw.numel()
+    scale = np.ones(n) if phase.midpoint_path_scale is None else np.broadcast_to(
+        np.asarray(phase.midpoint_path_scale, float).reshape(-1), (n,))
+    out = raw / ca.DM(scale)
+    inputs = ca.vertcat(za, zb, t0, tf)
+    args = [za, zb, t0, tf, s, p]
     mu, sigma = ca.SX.sym("mu", n), ca.SX.sym("sigma")
     return NodeFunctions(
-        out=ca.Function(f"{phase.name}_mid", [za, zb], [out]),
-        jac=ca.Function(f"{phase.name}_mid_jac", [za, zb], [ca.jacobian(out, inputs)]),
-        hess=ca.Function(f"{phase.name}_mid_hess", [za, zb, mu, sigma], [ca.hessian(ca.dot(mu, out), inputs)[0]]),
-        nx=nx, nu=0, n_path=n, n_in=2 * nx, n_out=n,
+        out=ca.Function(f"{phase.name}_mid", args, [out]),
+        jac=ca.Function(f"{phase.name}_mid_jac", args, [ca.jacobian(out, inputs)]),
+        hess=ca.Function(f"{phase.name}_mid_hess", [*args, mu, sigma], [ca.hessian(ca.dot(mu, out), inputs)[0]]),
+        nx=nx, nu=0, n_path=n, n_in=2 * nx + 2, n_out=n,
     )
 
 

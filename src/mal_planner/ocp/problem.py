@@ -117,13 +117,15 @@ class Phase:
     control_path_ub] at every collocation point, and between them with ``bound_controls_between``."""
     control_path_lb: Sequence[float] | float | None = None
     control_path_ub: Sequence[float] | float | None = None
-    midpoint_path: Callable[[ca.SX], object] | None = None
-    """Constraints on the states alone ``c(x)`` (e.g. obstacles, also given in ``path``), held at the middle of the
-    chord between every two consecutive nodes too: a path that rides a convex obstacle otherwise cuts its corner
-    between two collocation points (real-size traffic: a no-fly zone entered by 2 m, and no re-solve could fix it
-    once intruders hemmed the aircraft in)."""
+    midpoint_path: Callable[[ca.SX, ca.SX, ca.SX], object] | None = None
+    """Constraints ``c(x, t, p)`` on the states (e.g. obstacles and separations, also given in ``path``) held at the
+    middle of the chord between every two consecutive nodes too (x the chord's middle, t the time between the
+    nodes'): a path that rides a convex obstacle otherwise cuts its corner between two collocation points, and two
+    aircraft passing each other come closer between them than at either (real-size traffic: a no-fly zone entered
+    by 2 m, separations of 2.97 nm against 3, and verification rounds that could not mend them)."""
     midpoint_path_lb: Sequence[float] | float | None = None
     midpoint_path_ub: Sequence[float] | float | None = None
+    midpoint_path_scale: Sequence[float] | float | None = None
     state_scale: Sequence[float] | str | None = None
     control_scale: Sequence[float] | str | None = None
     time_scale: float = 1.0

@@ -94,7 +94,7 @@ class OCPSolver:
         self._nodes = ([node_functions(ph, f, problem.n_params) for ph, f in zip(problem.phases, self._funcs,
                                                                                  strict=True)]
                        if self.options.structured_derivatives else None)
-        self._midpoints = [midpoint_functions(ph) for ph in problem.phases]
+        self._midpoints = [midpoint_functions(ph, problem.n_params) for ph in problem.phases]
         self._f_only = [_first_output(f) for f in self._funcs]
         self._f_maps: dict[tuple[int, int], ca.Function] = {}
         self._state_scales = [ph.scales()[0] for ph in problem.phases]

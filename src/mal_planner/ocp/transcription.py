@@ -283,15 +283,18 @@ class Transcription:
             cols[nx + nu, :], cols[nx + nu + 1, :] = slot.t0, slot.tf
             cols[nx + nu + 2, :nc] = hc
             blocks.append(_NodeBlock(fns, args, rows, cols))
-            mid = midpoints[i_ph] if midpoints is not None else midpoint_functions(ph)
+            mid = midpoints[i_ph] if midpoints is not None else midpoint_functions(ph, problem.n_params)
             if mid is not None:
-                pairs = [z[:, :-1], z[:, 1:]]
+                s_nodes = (lay.tau + 1.0) / 2.0
+                pairs = [z[:, :-1], z[:, 1:], t0_s, tf_s, ca.DM(0.5 * (s_nodes[:-1] + s_nodes[1:])).T, p]
+                scale = _bounds(ph.midpoint_path_scale, mid.n_out, 1.0)
                 m_row = add_g(ca.vec(mid.out.map(nk - 1)(*pairs)),
-                              np.tile(_bounds(ph.midpoint_path_lb, mid.n_out, -np.inf), nk - 1),
-                              np.tile(_bounds(ph.midpoint_path_ub, mid.n_out, np.inf), nk - 1))
+                              np.tile(_bounds(ph.midpoint_path_lb, mid.n_out, -np.inf) / scale, nk - 1),
+                              np.tile(_bounds(ph.midpoint_path_ub, mid.n_out, np.inf) / scale, nk - 1))
                 kk = np.arange(nk - 1)
                 m_cols = np.vstack([x0_col + kk[None, :] * nx + comp[:, None],
-                                    x0_col + (kk[None, :] + 1) * nx + comp[:, None]])
+                                    x0_col + (kk[None, :] + 1) * nx + comp[:, None],
+                                    np.full((1, nk - 1), slot.t0), np.full((1, nk - 1), slot.tf)])
                 blocks.append(_NodeBlock(mid, pairs, m_row + kk[None, :] * mid.n_out + np.arange(mid.n_out)[:, None],
                                          m_cols))
 
