@@ -134,20 +134,22 @@ def _hard_timeout(limit: float) -> float:
 
 
 # ---------------------------------------------------------------------------------------------- runs
-def child_generate(folder: str, sizes: list[int], seed: int, layout: str, landing_times: str) -> dict[str, Any]:
-    """Scenario 0 of ``mal-traffic --aircraft N --seed S --layout L --landing-times T`` per N: path or error."""
+def child_generate(folder: str, sizes: list[int], seed: int, layout: str, landing_times: str,
+                   profile: str = "thesis") -> dict[str, Any]:
+    """Scenario 0 of ``mal-traffic --aircraft N --seed S --layout L --landing-times T --profile P`` per N: path or
+    error."""
     from mal_planner.campaign.traffic import TrafficError, TrafficSpec, generate_one
 
     out: dict[str, Any] = {}
     for n in sizes:
         try:
             generated = generate_one(TrafficSpec(aircraft=(n, n), seed=seed, layout=layout,
-                                                 landing_times=landing_times), 0)
+                                                 landing_times=landing_times, profile=profile), 0)
         except TrafficError as exc:
             out[str(n)] = {"error": str(exc)}
             continue
         Path(folder).mkdir(parents=True, exist_ok=True)
-        path = Path(folder) / f"n{n:02d}-seed{seed}-{layout}-{landing_times}.yaml"
+        path = Path(folder) / f"n{n:02d}-seed{seed}-{layout}-{landing_times}-{profile}.yaml"
         path.write_text(generated.text, encoding="utf-8")
         out[str(n)] = {"path": str(path.resolve())}
     return out
@@ -354,6 +356,7 @@ def child_main(argv: list[str]) -> int:
     p.add_argument("--sizes", type=_int_list, default=[])
     p.add_argument("--seed", type=int, default=0)
     p.add_argument("--layout", default="wall")
+    p.add_argument("--profile", default="thesis")
     p.add_argument("--landing-times", default="free")
     p.add_argument("--child-json", type=Path, required=True)
     p.add_argument("--time-limit", type=float, default=300.0)
@@ -361,7 +364,7 @@ def child_main(argv: list[str]) -> int:
     p.add_argument("--replans", type=int, default=3)
     a = p.parse_args(argv)
     if a.child == "generate":
-        result = child_generate(a.scenario, a.sizes, a.seed, a.layout, a.landing_times)
+        result = child_generate(a.scenario, a.sizes, a.seed, a.layout, a.landing_times, a.profile)
     elif a.child == "nlp-size":
         result = child_nlp_size(a.scenario)
     else:
@@ -540,7 +543,8 @@ def write_markdown(path: Path, meta: dict[str, Any], rows: list[dict[str, Any]],
         f"Python {meta['python']}, CasADi {meta['casadi']}.", "",
         f"Command: `{meta['command']}`", "",
         f"Scenarios: the traffic generator (`mal-traffic --aircraft N --seed {a['seed']} --layout {a['layout']} "
-        f"--landing-times {a['landing_times']}`, scenario 0; the files are in `scenarios/` of the output folder). "
+        f"--landing-times {a['landing_times']} --profile {a.get('profile', 'thesis')}`, scenario 0; the files are in "
+        "`scenarios/` of the output folder). "
         "Each run is its own process: `mal-plan <scenario> --figures none --out <tmp> -q --time-limit "
         f"{a['time_limit']:g}`; median of {a['repeats']} repeat(s). *Total* is the wall time of that process "
         "(Python start-up, imports, planning, writing plan.json); the stage times come from its plan.json "
@@ -696,6 +700,8 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--repeats", type=int, default=3, help="runs per size for the medians (default 3)")
     p.add_argument("--time-limit", type=float, default=300.0, help="mal-plan --time-limit per run, s (default 300)")
     p.add_argument("--layout", choices=["wall", "no-fly-zones"], default="wall", help="traffic layout")
+    p.add_argument("--profile", choices=["thesis", "tma"], default="thesis",
+                   help="traffic numbers: the thesis's box or a real terminal area (mal-traffic --profile)")
     p.add_argument("--landing-times", choices=["free", "fixed"], default="free",
                    help="free: no times in the files (the sequencer's schedule); fixed: the generator's")
     p.add_argument("--seed", type=int, default=0, help="traffic generator seed (default 0)")
@@ -742,7 +748,7 @@ def main(argv: list[str] | None = None) -> int:
         scenarios: dict[int, Path] = {}
         gen = run_child("generate", scenario_dir, "traffic", 0, work, 600.0,
                         ["--sizes", ",".join(map(str, all_sizes)), "--seed", str(args.seed), "--layout", args.layout,
-                         "--landing-times", args.landing_times])
+                         "--landing-times", args.landing_times, "--profile", args.profile])
         for n in all_sizes:
             entry = gen.get(str(n)) or {"error": gen.get("failure") or "not generated"}
             if "path" in entry:
