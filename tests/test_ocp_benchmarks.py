@@ -212,8 +212,9 @@ def test_scaled_units_reach_ipopt_with_the_same_numbers() -> None:
 
 
 def _derivatives_both_ways(problem: Problem, params, lam_f: float = 0.7, seed: int = 0):
-    """The constraint Jacobian and the Lagrangian's Hessian of ``problem``'s NLP at a random point near its
-    guess, from the nodes' own derivatives and from CasADi's differentiation of the whole NLP."""
+    """The objective's gradient, the constraint Jacobian and the Lagrangian's Hessian of ``problem``'s NLP at a
+    random point near its guess, from the nodes' own derivatives and from CasADi's differentiation of the whole
+    NLP."""
     from mal_planner.ocp.transcription import Transcription
 
     solver = OCPSolver(problem)
@@ -226,7 +227,7 @@ def _derivatives_both_ways(problem: Problem, params, lam_f: float = 0.7, seed: i
     args = {"x": w, "p": params}
     lam = {"lam_f": lam_f, "lam_g": rng.standard_normal(plain.lbg.size)}
     out = []
-    for name, extra in (("nlp_jac_g", {}), ("nlp_hess_l", lam)):
+    for name, extra in (("nlp_grad_f", {}), ("nlp_jac_g", {}), ("nlp_hess_l", lam)):
         a = plain.solver.get_function(name)(**args, **extra)
         b = structured.solver.get_function(name)(**args, **extra)
         key = list(a)[-1]
@@ -236,8 +237,9 @@ def _derivatives_both_ways(problem: Problem, params, lam_f: float = 0.7, seed: i
 
 @pytest.mark.parametrize("case", ["three_phase_bryson_denham", "thesis", "no_fly_zones"])
 def test_node_derivatives_equal_casadi_s_differentiation(case: str) -> None:
-    """The Jacobian and Hessian IPOPT gets are assembled from each node's derivatives (ocp.nodes); they must be
-    CasADi's own, entry for entry: linkages, events, path constraints, time-dependent terms and scales included."""
+    """The gradient, Jacobian and Hessian IPOPT gets are assembled from each node's derivatives (ocp.nodes); they
+    must be CasADi's own, entry for entry: linkages, events, path constraints, time-dependent terms and scales
+    included."""
     if case != "three_phase_bryson_denham":  # scenarios: the wall's gate; an ellipsoid and a box at midpoints too
         from mal_planner.initializer.sequencer import plan_initial
         from mal_planner.landing.solve import LandingOptimizer, LandingOptions, make_guesses

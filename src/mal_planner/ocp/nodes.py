@@ -38,8 +38,10 @@ class NodeFunctions:
     nu: int
     n_path: int
     n_in: int
-    """Differentiated inputs: z, v, t0, tf, h (a node), or z_a, z_b (a midpoint)."""
+    """Differentiated inputs: z, v, t0, tf, h (a node), or z_a, z_b, t0, tf (a midpoint)."""
     n_out: int
+    grad: ca.Function | None = None
+    """The gradient (a row) of the node's share of the integral in the same inputs (None: no integral)."""
 
 
 def node_functions(phase: Phase, fun: ca.Function, n_params: int) -> NodeFunctions:
@@ -71,6 +73,7 @@ def node_functions(phase: Phase, fun: ca.Function, n_params: int) -> NodeFunctio
         jac=ca.Function(f"{phase.name}_node_jac", args, [ca.jacobian(out, inputs)]),
         hess=ca.Function(f"{phase.name}_node_hess", [*args, mu, sigma], [hess]),
         nx=nx, nu=nu, n_path=n_path, n_in=nx + nu + 3, n_out=nx + n_path,
+        grad=ca.Function(f"{phase.name}_node_grad", args, [ca.jacobian(q, inputs)]),
     )
 
 

@@ -372,7 +372,7 @@ class Transcription:
         self.integrals = ca.Function("integrals", [w, p], [ca.vertcat(*qs)])
         options = dict(solver_options)
         if nodes is not None:
-            options.update(self._derivatives(w, p, g, ng, lin, blocks, ad_rows, mayer))
+            options.update(self._derivatives(w, p, g, ng, lin, blocks, ad_rows, mayer, nlp["f"]))
         if watch is not None:
             self._watch_fn = watch.function(nw, int(self.lbg.size), problem.n_params)
             options["iteration_callback"] = self._watch_fn
@@ -380,8 +380,8 @@ class Transcription:
         self.build_time = time.perf_counter() - t_start
 
     def _derivatives(self, w: ca.MX, p: ca.MX, g: ca.MX, ng: int, lin, blocks: list[_NodeBlock],
-                     ad_rows: list[tuple[int, ca.MX]], mayer: ca.MX) -> dict[str, ca.Function]:
-        """``jac_g`` and ``hess_lag`` for nlpsol, assembled from the nodes' derivatives (see
+                     ad_rows: list[tuple[int, ca.MX]], mayer: ca.MX, cost: ca.MX) -> dict[str, ca.Function]:
+        """``grad_f``, ``jac_g`` and ``hess_lag`` for nlpsol, assembled from the nodes' derivatives (see
         :mod:`mal_planner.ocp.nodes`), constant entries, and CasADi's differentiation of the few other rows."""
         nw = self.n_w
         rows = np.concatenate([r for r, _, _ in lin])
@@ -392,11 +392,18 @@ class Transcription:
         lam_ext = ca.vertcat(lam_g, 0.0)
         sigma = lam_f / self.objective_scale if self.problem.lagrange_in_cost else ca.MX(0)
         hess = ca.MX(nw, nw)
+        grad = ca.MX(nw, 1)
         for blk in blocks:
             nk = blk.rows.shape[1]
+            if blk.fns.grad is not None and self.problem.lagrange_in_cost:
+                grad_all = blk.fns.grad.map(nk)(*blk.args)
+                pat = blk.fns.grad.sparsity_out(0)
+                c_loc = np.array(pat.get_col(), dtype=int)
+                node = np.repeat(np.arange(nk), len(c_loc))
+                grad = grad + scatter(grad_all, blk.cols[np.tile(c_loc, nk), node], np.zeros(len(node), int), (nw, 1))
             jac_all = blk.fns.jac.map(nk)(*blk.args)
             pat = blk.fns.jac.sparsity_out(0)
-            r_loc, c_loc = np.array(pat.row()), np.array(pat.get_col())
+            r_loc, c_loc = np.array(pat.row(), dtype=int), np.array(pat.get_col(), dtype=int)
             node = np.repeat(np.arange(nk), len(r_loc))
             jac = jac + scatter(jac_all, blk.rows[np.tile(r_loc, nk), node], blk.cols[np.tile(c_loc, nk), node],
                                 (ng, nw))
@@ -404,7 +411,7 @@ class Transcription:
             mu = ca.reshape(lam_ext.nz[idx.tolist()], blk.rows.shape[0], nk)
             hess_all = blk.fns.hess.map(nk)(*blk.args, mu, sigma)
             pat = blk.fns.hess.sparsity_out(0)
-            r_loc, c_loc = np.array(pat.row()), np.array(pat.get_col())
+            r_loc, c_loc = np.array(pat.row(), dtype=int), np.array(pat.get_col(), dtype=int)
             node = np.repeat(np.arange(nk), len(r_loc))
             hess = hess + scatter(hess_all, blk.cols[np.tile(r_loc, nk), node], blk.cols[np.tile(c_loc, nk), node],
                                   (nw, nw), upper=True)
@@ -418,7 +425,9 @@ class Transcription:
         else:
             lagrangian = lam_f * mayer / self.objective_scale
         hess = hess + ca.triu(ca.hessian(lagrangian, w)[0])
+        grad = (grad + ca.gradient(mayer, w)) / self.objective_scale
         return {
+            "grad_f": ca.Function("ocp_grad_f", [w, p], [cost, grad], ["x", "p"], ["f", "grad_f_x"]),
             "jac_g": ca.Function("ocp_jac_g", [w, p], [g, jac], ["x", "p"], ["g", "jac_g_x"]),
             "hess_lag": ca.Function("ocp_hess_lag", [w, p, lam_f, lam_g], [ca.triu(hess)],
                                     ["x", "p", "lam_f", "lam_g"], ["triu_hess_gamma_x_x"]),
