@@ -73,6 +73,48 @@ def test_loss_of_separation_is_caught(thesis) -> None:
     assert report.violation_times() and abs(report.violation_times()[0] - 25.0) < 0.1
 
 
+@pytest.mark.parametrize(("dz_ft", "dy_nm", "verified"), [(1100.0, 0.1, True), (900.0, 0.1, False),
+                                                          (900.0, 0.2, True)])
+def test_cylindrical_separation_is_horizontal_or_vertical(thesis, dz_ft: float, dy_nm: float,
+                                                          verified: bool) -> None:
+    """ATC's protected zone (0.15 nm or 1000 ft here): crossing 0.1 nm apart 1100 ft above is separated (a 0.25 nm
+    sphere would not be), 900 ft above is not, 0.2 nm apart at 900 ft is again."""
+    from mal_planner.units import ft_to_nm
+    cyl = dataclasses.replace(thesis, separation_nm=0.15, vertical_separation_nm=ft_to_nm(1000.0))
+    a = np.array([-1.0, 5.0, 0.05])
+    b = np.array([1.0, 5.0 + dy_nm, 0.05 + ft_to_nm(dz_ft)])
+    sc = cyl.with_initial_states({"A1": np.array([*a, 0.0, 0.0]), "A2": np.array([*b, 0.0, math.pi])})
+    trajs = [straight_level("A1", a, 0.0, 30.0), straight_level("A2", b, math.pi, 30.0)]
+    report = verify(sc, trajs)
+    reasons = [r for r in report.reasons if "A1-A2" in r]
+    assert (not reasons) == verified, reasons
+    if not verified:
+        assert "0.1000 nm apart horizontally and 900 ft vertically at t=25.00 s" in reasons[0]
+        assert report.pairs[0].min_distance_nm < 0.15
+    sphere = verify(dataclasses.replace(sc, vertical_separation_nm=None, separation_nm=0.25), trajs)
+    assert any("A1-A2" in r for r in sphere.reasons)  # inside a 0.25 nm sphere in every case
+
+
+def test_cylinder_chords_are_exact() -> None:
+    """The chord test against a dense sampling: the same verdict, and the smallest ratio to 1e-4 (the sampling's own error)."""
+    from mal_planner.verification import _cylinder_chords
+    rng = np.random.default_rng(1)
+    n = 600
+    rel = rng.uniform(-1, 1, (3, n)) * np.array([[1], [1], [0.3]])
+    step = rng.uniform(-1, 1, (3, n)) * np.array([[1], [1], [0.3]])
+    step[2, :100] = 0.0  # level chords
+    step[:, 100:150] = 0.0  # points
+    spare = rng.uniform(0, 0.01, n)
+    inside, ratio, _ = _cylinder_chords(rel, step, spare, 0.5, 0.1)
+    s = np.linspace(0.0, 1.0, 100001)
+    for i in range(n):
+        p = rel[:, i:i + 1] + step[:, i:i + 1] * s
+        r = np.maximum((np.hypot(p[0], p[1]) - spare[i]) / 0.5, (np.abs(p[2]) - spare[i]) / 0.1)
+        assert ratio[i] <= r.min() + 1e-12 and r.min() - ratio[i] < 1e-4
+        assert inside[i] == (r.min() < 1.0) or abs(r.min() - 1.0) < 1e-6
+    assert 0.05 < inside.mean() < 0.5
+
+
 def test_bank_limit_and_deviation_are_caught(thesis) -> None:
     start = np.array([0.0, 5.0, 0.2])
     sc = thesis.with_initial_states({"A1": np.array([*start, 0.0, -math.pi / 2])})

@@ -13,6 +13,7 @@ from pathlib import Path
 import numpy as np
 
 from mal_planner.pipeline import PlanResult
+from mal_planner.units import nm_to_ft
 
 SCHEMA = "mal-planner/plan"
 SCHEMA_VERSION = 1
@@ -113,7 +114,11 @@ def validation_report(result: PlanResult) -> str:
     lines += ["", f"Objective: {result.landing.objective:.6f}", "", "## Separation (minimum over the flight)", "",
               "| pair | minimum distance (nm) | at t (s) |", "|---|---|---|"]
     lines += [f"| {p.pair} | {p.min_distance_nm:.4f} | {p.at_time_s:.2f} |" for p in rep.pairs]
-    lines += ["", f"Required: {result.scenario.separation_nm} nm", "", "## Bank angle and re-integration", "",
+    sc = result.scenario
+    required = f"{sc.separation_nm} nm" if sc.vertical_separation_nm is None else (
+        f"{sc.separation_nm} nm horizontally or {nm_to_ft(sc.vertical_separation_nm):.0f} ft vertically (a cylinder; "
+        "the distance column is the horizontal minimum times the smallest max(h / H, |dz| / V))")
+    lines += ["", f"Required: {required}", "", "## Bank angle and re-integration", "",
               "| aircraft | bank min (deg) | bank max (deg) | max deviation (nm) | runway error (nm) |",
               "|---|---|---|---|---|"]
     for a in rep.aircraft:

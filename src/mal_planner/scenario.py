@@ -7,6 +7,7 @@ and the reason.
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass, replace
 from pathlib import Path
 from typing import Annotated, Any, Literal
@@ -17,6 +18,7 @@ from pydantic import BaseModel, ConfigDict, Field, ValidationError, field_valida
 
 from mal_planner.dynamics import DYNAMICS_MODELS, ControlLimits, DynamicsModel, make_dynamics
 from mal_planner.obstacles import Gate, Superquadric, wall_with_hole
+from mal_planner.units import ft_to_nm
 
 AXIS_INDEX = {"x": 0, "y": 1, "z": 2}
 
@@ -214,11 +216,26 @@ ObstacleConfig = Annotated[SuperquadricConfig | WallConfig, Field(discriminator=
 
 class SeparationConfig(_Strict):
     distance_nm: float = Field(0.25, gt=0.0)
-    """Minimum distance between any two airborne aircraft."""
+    """Minimum distance between any two airborne aircraft (a sphere, as in the thesis); with ``vertical_ft``, the
+    horizontal minimum."""
+    horizontal_nm: float | None = Field(None, gt=0.0)
+    """The horizontal minimum of an ATC protected zone (another name for ``distance_nm``; give one of them)."""
+    vertical_ft: float | None = Field(None, gt=0.0)
+    """The vertical minimum (ICAO: 1000 ft): two aircraft are separated when they are ``distance_nm`` apart
+    horizontally OR this far apart vertically (a cylinder, as ATC and BlueSky count it). None: the sphere."""
     landing_spacing_s: float = Field(15.0, gt=0.0)
     """Minimum time between successive landings."""
     max_landing_spacing_s: float = Field(30.0, gt=0.0)
     """Largest time between successive landings the sequencer aims for."""
+
+    @model_validator(mode="before")
+    @classmethod
+    def _horizontal(cls, data: Any) -> Any:
+        if isinstance(data, dict) and data.get("horizontal_nm") is not None:
+            if "distance_nm" in data:
+                raise ValueError("give distance_nm or horizontal_nm, not both")
+            data = {**data, "distance_nm": data["horizontal_nm"]}
+        return data
 
     @model_validator(mode="after")
     def _ordered(self) -> SeparationConfig:
@@ -286,11 +303,19 @@ class Scenario:
     obstacles: tuple[Superquadric, ...]
     gates: tuple[Gate, ...]
     separation_nm: float
+    """The minimum distance (sphere), or the horizontal minimum when :attr:`vertical_separation_nm` is set."""
     landing_spacing_s: float
     max_landing_spacing_s: float
     gravity: float
     config: ScenarioConfig
     source: str = "<scenario>"
+    vertical_separation_nm: float | None = None
+    """The vertical minimum of a cylindrical protected zone (separated: horizontally OR vertically); None: sphere."""
+
+    @property
+    def separation_radius_nm(self) -> float:
+        """Radius of the smallest sphere holding the protected zone: farther apart than this is separated."""
+        return math.hypot(self.separation_nm, self.vertical_separation_nm or 0.0)
 
     def aircraft_by_callsign(self, callsign: str) -> Aircraft:
         for ac in self.aircraft:
@@ -370,6 +395,7 @@ def build_scenario(config: ScenarioConfig, source: str = "<scenario>") -> Scenar
         obstacles=tuple(obstacles),
         gates=tuple(gates),
         separation_nm=config.separation.distance_nm,
+        vertical_separation_nm=None if (ft := config.separation.vertical_ft) is None else ft_to_nm(ft),
         landing_spacing_s=config.separation.landing_spacing_s,
         max_landing_spacing_s=config.separation.max_landing_spacing_s,
         gravity=config.gravity,

@@ -15,6 +15,9 @@ import numpy as np
 METRES_PER_NM: float = 1852.0
 """International nautical mile in metres."""
 
+METRES_PER_FT: float = 0.3048
+"""International foot in metres."""
+
 PLANNER_FRAME = "runway"
 
 
@@ -26,6 +29,16 @@ def nm_to_m(value):
 def m_to_nm(value):
     """Metres (scalar or array) to nautical miles."""
     return np.asarray(value, dtype=float) / METRES_PER_NM if not np.isscalar(value) else value / METRES_PER_NM
+
+
+def ft_to_nm(value: float) -> float:
+    """Feet to nautical miles."""
+    return value * METRES_PER_FT / METRES_PER_NM
+
+
+def nm_to_ft(value: float) -> float:
+    """Nautical miles to feet."""
+    return value * METRES_PER_NM / METRES_PER_FT
 
 
 def nm_per_s_to_m_per_s(value: float) -> float:

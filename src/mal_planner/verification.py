@@ -30,6 +30,7 @@ from mal_planner.dynamics import DynamicsModel, stacked_model
 from mal_planner.scales import Scales
 from mal_planner.scenario import Scenario
 from mal_planner.trajectory import Trajectory
+from mal_planner.units import nm_to_ft
 
 
 @dataclass(frozen=True)
@@ -531,7 +532,8 @@ def _far_apart(scenario: Scenario, a: str, b: str, ta: np.ndarray, xa: np.ndarra
     time at 20 aircraft of a terminal area. The grid step is separation / (V_a + V_b): half a separation of slack.
     """
     speeds = scenario.aircraft_by_callsign(a).speed + scenario.aircraft_by_callsign(b).speed
-    dt = scenario.separation_nm / speeds
+    radius = scenario.separation_radius_nm  # farther apart than this is separated, also for a cylinder
+    dt = radius / speeds
     grid = np.append(np.arange(t_start, t_end, dt), t_end)
     if len(grid) < 3:
         return None
@@ -539,7 +541,7 @@ def _far_apart(scenario: Scenario, a: str, b: str, ta: np.ndarray, xa: np.ndarra
     pb = np.column_stack([np.interp(grid, tb, xb[:, k]) for k in range(3)])
     dist = np.linalg.norm(pa - pb, axis=1)
     lower = np.minimum(dist[:-1], dist[1:]) - 0.5 * speeds * np.diff(grid)
-    if lower.min() - spare <= scenario.separation_nm:
+    if lower.min() - spare <= radius:
         return None
     keep = np.flatnonzero(lower <= dist.min())
     return [(float(grid[k]), float(grid[k + 1])) for k in keep]
@@ -570,13 +572,18 @@ def _closest_approaches(names: list[tuple[str, str]], grids: list[np.ndarray],
     near = rel + s_min * step
     closest = np.sqrt(np.sum(near * near, axis=0))
     closest[last] = np.sqrt(np.sum(rel[:, last] * rel[:, last], axis=0))
-    spare = np.array([spare_of[a] + spare_of[b] for a, b in names])
-    dist = closest - spare[pair]
+    spare = np.array([spare_of[a] + spare_of[b] for a, b in names])[pair]
+    dist = closest - spare
     gap = np.zeros(len(grid))
     gap[:-1] = np.diff(grid)
     at = grid + s_min * gap
     at[last] = grid[last]
     low = dist < scenario.separation_nm
+    if scenario.vertical_separation_nm is not None:  # a cylinder: separated horizontally OR vertically
+        low, ratio, s_at = _cylinder_chords(rel, step, spare, scenario.separation_nm, scenario.vertical_separation_nm)
+        dist = scenario.separation_nm * ratio
+        at = grid + s_at * gap
+        at[last] = grid[last]
     left = np.ones(len(grid), bool)
     left[1:] = dist[1:] <= dist[:-1]
     left[first] = True
@@ -589,7 +596,68 @@ def _closest_approaches(names: list[tuple[str, str]], grids: list[np.ndarray],
         k = first[j] + int(np.argmin(dist[first[j]:last[j] + 1]))
         mine = violations[(violations >= first[j]) & (violations <= last[j])]
         pairs.append(PairCheck(f"{a}-{b}", float(dist[k]), float(at[k]), at[mine].tolist()))
-        if dist[k] < scenario.separation_nm:
+        if scenario.vertical_separation_nm is not None:
+            if len(mine):
+                # Told at the closest horizontal approach on the violating chords (the ratio is often flat there).
+                dh, r0 = step[:2, mine], rel[:2, mine]
+                dd = np.sum(dh * dh, axis=0)
+                s_h = np.clip(-np.sum(r0 * dh, axis=0) / np.where(dd > 0.0, dd, 1.0), 0.0, 1.0)
+                i = int(np.argmin(np.linalg.norm(r0 + s_h * dh, axis=0)))
+                k, s_k = int(mine[i]), float(s_h[i])
+                p = rel[:, k] + s_k * step[:, k]
+                fail((a, b), f"{a}-{b}: {math.hypot(p[0], p[1]):.4f} nm apart horizontally and "
+                             f"{nm_to_ft(abs(p[2])):.0f} ft vertically at t={grid[k] + s_k * gap[k]:.2f} s "
+                             f"(minima {scenario.separation_nm} nm or "
+                             f"{nm_to_ft(scenario.vertical_separation_nm):.0f} ft)")
+        elif dist[k] < scenario.separation_nm:
             fail((a, b), f"{a}-{b}: {dist[k]:.4f} nm apart at t={at[k]:.2f} s "
                            f"(minimum {scenario.separation_nm} nm)")
     return pairs
+
+
+def _cylinder_chords(rel: np.ndarray, step: np.ndarray, spare: np.ndarray, h_min: float, v_min: float
+                     ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """A cylindrical protected zone on the chords rel + s step, s in [0, 1] (columns; spare: the chord errors).
+
+    Returns, per chord: whether some s has h < H + spare AND |dz| < V + spare (exact: the first set is the inside
+    of a quadratic's roots, the second an interval); the smallest max((h - spare) / H, (|dz| - spare) / V) over the
+    chord (the pair's separation in minima, < 1 inside; a convex function: its minimum lies at an end, at the
+    smallest h, at dz = 0, or where the two terms are equal); and the s where it is reached.
+    """
+    h0, dh, z0, dz = rel[:2], step[:2], rel[2], step[2]
+    qa, qb = np.sum(dh * dh, axis=0), 2.0 * np.sum(h0 * dh, axis=0)
+    qc = np.sum(h0 * h0, axis=0)
+    big_h, big_v = h_min + spare, v_min + spare
+    with np.errstate(divide="ignore", invalid="ignore"):
+        disc = qb * qb - 4.0 * qa * (qc - big_h * big_h)
+        root = np.sqrt(np.maximum(disc, 0.0))
+        flat = qa <= 0.0
+        h_lo = np.where(flat, np.where(qc < big_h * big_h, -np.inf, np.inf), (-qb - root) / (2.0 * qa))
+        h_hi = np.where(flat, np.where(qc < big_h * big_h, np.inf, -np.inf), (-qb + root) / (2.0 * qa))
+        h_lo, h_hi = np.where(~flat & (disc <= 0.0), np.inf, h_lo), np.where(~flat & (disc <= 0.0), -np.inf, h_hi)
+        level = dz == 0.0
+        v_a, v_b = (-big_v - z0) / dz, (big_v - z0) / dz
+        v_lo = np.where(level, np.where(np.abs(z0) < big_v, -np.inf, np.inf), np.minimum(v_a, v_b))
+        v_hi = np.where(level, np.where(np.abs(z0) < big_v, np.inf, -np.inf), np.maximum(v_a, v_b))
+    inside = np.maximum.reduce([np.zeros_like(qa), h_lo, v_lo]) < np.minimum.reduce([np.ones_like(qa), h_hi, v_hi])
+    # Candidates of the smallest ratio: the ends, the smallest h, dz = 0, and where both terms are equal.
+    k = h_min / v_min
+    cands = [np.zeros_like(qa), np.ones_like(qa)]
+    with np.errstate(divide="ignore", invalid="ignore"):
+        cands.append(np.where(qa > 0.0, -qb / (2.0 * qa), 0.0))
+        cands.append(np.where(level, 0.0, -z0 / dz))
+        for sign in (1.0, -1.0):  # h(s) = k (sign dz(s) - spare) + spare, squared: a quadratic in s
+            c1, c0 = k * sign * dz, k * (sign * z0 - spare) + spare
+            a2, b2, c2 = qa - c1 * c1, qb - 2.0 * c1 * c0, qc - c0 * c0
+            d2 = np.sqrt(np.maximum(b2 * b2 - 4.0 * a2 * c2, 0.0))
+            for r in ((-b2 - d2) / (2.0 * a2), (-b2 + d2) / (2.0 * a2)):
+                cands.append(np.where(np.abs(a2) > 1e-300, r, np.where(b2 != 0.0, -c2 / b2, 0.0)))
+    best_ratio = np.full(qa.shape, np.inf)
+    best_s = np.zeros_like(qa)
+    for s in cands:
+        s = np.clip(np.nan_to_num(s, nan=0.0, posinf=1.0, neginf=0.0), 0.0, 1.0)
+        h = np.sqrt(np.maximum(qa * s * s + qb * s + qc, 0.0))
+        ratio = np.maximum((h - spare) / h_min, (np.abs(z0 + s * dz) - spare) / v_min)
+        better = ratio < best_ratio
+        best_ratio, best_s = np.where(better, ratio, best_ratio), np.where(better, s, best_s)
+    return inside, best_ratio, best_s

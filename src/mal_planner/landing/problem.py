@@ -215,6 +215,50 @@ MIN_DURATION_TURN_TIMES = 1e-3
 """A phase lasts at least this many turn times (thesis: 0.01 s)."""
 LANDED_DISTANCE2 = 1e2
 """The squared distance (in separations^2) a separation constraint sees once the intruder has landed: far away."""
+CYLINDER_P = 50
+"""Exponent of the smooth cylinder: ||(h / H, dz / V)||_p >= 2^(1/p) implies max(h / H, |dz| / V) >= 1, so the
+optimizer keeps 2^(1/50) - 1 = 1.4 % more than the minima where one of them alone separates (the wall's p)."""
+
+
+@dataclass(frozen=True)
+class ProtectedZone:
+    """The separation constraint of one pair, as the NLP sees it.
+
+    A sphere (the thesis): the squared distance >= (S + margin)^2, scaled by that. A cylinder (ATC: separated
+    horizontally by H OR vertically by V): ln(A^(p/2) + B^(p/2)) / p >= ln(2) / p with A = h^2 / H'^2 and
+    B = dz^2 / V'^2, H' and V' the minima plus the margin; a smooth, conservative form of max(A, B) >= 1 (see
+    :data:`CYLINDER_P`), dimensionless like the obstacles' ln of the p-norm.
+    """
+
+    horizontal_nm: float
+    vertical_nm: float | None
+
+    @classmethod
+    def of(cls, scenario: Scenario, margins: Margins) -> ProtectedZone:
+        vertical = scenario.vertical_separation_nm
+        return cls(scenario.separation_nm + margins.separation_nm,
+                   None if vertical is None else vertical + margins.separation_nm)
+
+    def measure(self, d):
+        """The constrained expression of a relative position ``d`` (3 rows)."""
+        if self.vertical_nm is None:
+            return ca.sumsqr(d)
+        a = (d[0] ** 2 + d[1] ** 2) / self.horizontal_nm**2
+        b = d[2] ** 2 / self.vertical_nm**2
+        return ca.log(a ** (CYLINDER_P // 2) + b ** (CYLINDER_P // 2)) / CYLINDER_P
+
+    @property
+    def lower(self) -> float:
+        return self.horizontal_nm**2 if self.vertical_nm is None else math.log(2.0) / CYLINDER_P
+
+    @property
+    def scale(self) -> float:
+        return self.horizontal_nm**2 if self.vertical_nm is None else 1.0
+
+    @property
+    def landed(self) -> float:
+        """What a constraint sees once the intruder has landed: far away."""
+        return LANDED_DISTANCE2 * self.lower if self.vertical_nm is None else self.lower + 1.0
 
 
 EDGE_SHARE = 0.3
@@ -324,7 +368,7 @@ def _phase(ctx: _Context, k: int, who: list[int], mesh: PhaseMesh, guess_span: t
         for j in range(len(who))
     ]
     pairs = [(who.index(a), who.index(b)) for a, b in separated]
-    sep2 = (scenario.separation_nm + margins.separation_nm) ** 2
+    zone = ProtectedZone.of(scenario, margins)
 
     def dynamics(x, u, t, p):
         return ca.vertcat(*[m.rhs(x[5 * j:5 * j + 5], u[2 * j:2 * j + 2]) for j, m in enumerate(models)])
@@ -337,14 +381,11 @@ def _phase(ctx: _Context, k: int, who: list[int], mesh: PhaseMesh, guess_span: t
         return total
 
     def separations(x, t) -> list:
-        out = []
-        for a, b in pairs:
-            d = x[5 * a:5 * a + 3] - x[5 * b:5 * b + 3]
-            out.append(ca.sumsqr(d))
+        out = [zone.measure(x[5 * a:5 * a + 3] - x[5 * b:5 * b + 3]) for a, b in pairs]
         for j in range(n_ac):
             for other in ctx.intruders:  # once it has landed, an intruder no longer counts
-                d2 = ca.sumsqr(x[5 * j:5 * j + 3] - other.position(t))
-                out.append(ca.if_else(t <= other.t_end, d2, LANDED_DISTANCE2 * sep2))
+                row = zone.measure(x[5 * j:5 * j + 3] - other.position(t))
+                out.append(ca.if_else(t <= other.t_end, row, zone.landed))
         return out
 
     def path(x, u, t, p):
@@ -376,10 +417,10 @@ def _phase(ctx: _Context, k: int, who: list[int], mesh: PhaseMesh, guess_span: t
         p_lb += [margins.clearance] * len(relevant[j])
         p_ub += [math.inf] * len(relevant[j])
     n_sep = len(pairs) + n_ac * len(ctx.intruders)
-    p_lb += [sep2] * n_sep
+    p_lb += [zone.lower] * n_sep
     p_ub += [math.inf] * n_sep
     # Obstacle rows are dimensionless already; squared distances are scaled by the squared separation.
-    p_scale = [1.0] * (len(p_lb) - n_sep) + [sep2] * n_sep
+    p_scale = [1.0] * (len(p_lb) - n_sep) + [zone.scale] * n_sep
 
     return Phase(
         name=layout.phase_name(k),
@@ -410,8 +451,8 @@ def _phase(ctx: _Context, k: int, who: list[int], mesh: PhaseMesh, guess_span: t
         control_path=bank,
         control_path_ub=0.0,
         midpoint_path=midpoint if n_bulky + n_sep else None,
-        midpoint_path_lb=[margins.clearance] * n_bulky + [sep2] * n_sep,
-        midpoint_path_scale=[1.0] * n_bulky + [sep2] * n_sep,
+        midpoint_path_lb=[margins.clearance] * n_bulky + [zone.lower] * n_sep,
+        midpoint_path_scale=[1.0] * n_bulky + [zone.scale] * n_sep,
         state_scale=[v for _ in who for v in (scales.length_nm, scales.length_nm, scales.length_nm, 1.0, 1.0)],
         time_scale=scales.time_s,
         path_scale=p_scale,
