@@ -212,6 +212,15 @@ class SequentialOptimizer:
                 if cs not in {f[0] for f in flown} and cs != guess.callsign]
             part = self._solve_one(scenario, guess, flown + later, before_by_callsign.get(guess.callsign), mesh,
                                    deadline, earliest, options)
+            kept = before_by_callsign.get(guess.callsign) if only is not None else None
+            if not part.success and kept is not None:
+                # A refinement that finds no plan for this aircraft keeps its previous one; the others of the pair
+                # are re-planned around it (an aircraft with a fixed landing time could not move away from a
+                # later one passing 2.93 nm from the threshold when it landed; the later one could).
+                log.info("%s: the refinement found no plan (%s); keeping its previous plan", guess.callsign,
+                         part.status)
+                kept_parts.append(kept)
+                part = kept
             if not part.success and meshes is None:
                 log.warning("sequential: %s found no plan (%s); trying to recover", guess.callsign, part.status)
                 step = self._recover(scenario, order, i, parts, flown, recoveries, deadline, options)
