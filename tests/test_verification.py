@@ -96,7 +96,10 @@ def test_cylindrical_separation_is_horizontal_or_vertical(thesis, dz_ft: float, 
 
 
 def test_cylinder_chords_are_exact() -> None:
-    """The chord test against a dense sampling: the same verdict, and the smallest ratio to 1e-4 (the sampling's own error)."""
+    """The chord test against a dense sampling: the same verdict, and the smallest ratio to 1e-4.
+
+    1e-4 is the dense sampling's own error.
+    """
     from mal_planner.verification import _cylinder_chords
     rng = np.random.default_rng(1)
     n = 600
