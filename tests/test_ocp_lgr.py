@@ -14,7 +14,7 @@ from mal_planner.ocp import (
     lgr_weights,
 )
 from mal_planner.ocp.lgr import support_points
-from mal_planner.ocp.mesh import estimate_errors, layout, refine
+from mal_planner.ocp.mesh import control_overshoot, estimate_errors, layout, refine
 
 
 def test_known_nodes_and_weights() -> None:
@@ -101,3 +101,23 @@ def test_interpolation_at_a_mesh_break_gives_the_node_value() -> None:
     xi, ui = phase.interpolate(t[k:k + 1])
     np.testing.assert_allclose(ui[0], u[k], rtol=0, atol=1e-12)
     np.testing.assert_allclose(xi[0], x[k], rtol=0, atol=1e-12)
+
+
+def test_control_overshoot_finds_bulges_between_nodes_and_splits_them() -> None:
+    """A control at its bound at every collocation point but one bulges past it in between (the interpolant is
+    a polynomial through them); the refinement halves that segment however small its state error."""
+    mesh = PhaseMesh((0.0, 0.5, 1.0), (6, 6))
+    lay = layout(mesh)
+    smooth = (lay.tau[:12] ** 2)[:, None]  # within [0, 1] everywhere
+    bulging = smooth.copy()
+    bulging[6:12, 0] = [1.0, 1.0, 0.0, 1.0, 1.0, 1.0]
+    lb, ub = np.array([0.0]), np.array([1.0])
+    assert np.all(control_overshoot(lay, smooth, lb, ub) == 0.0)
+    over = control_overshoot(lay, bulging, lb, ub)
+    assert over[0] == 0.0 and over[1] > 0.1
+    # The bulge, by dense sampling of the same interpolant.
+    from mal_planner.ocp.lgr import lagrange_matrix, lgr_nodes
+    dense = lagrange_matrix(lgr_nodes(6), np.linspace(-1, 1, 2001)) @ bulging[6:12, 0]
+    assert over[1] == pytest.approx(dense.max() - 1.0, rel=0.05)
+    refined = refine(mesh, np.zeros(2), 1e-6, 3, 10, split=over > 1e-3)
+    assert refined.breaks == (0.0, 0.5, 0.75, 1.0) and refined.degrees == (6, 6, 6)

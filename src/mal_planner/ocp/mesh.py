@@ -132,6 +132,35 @@ def estimate_errors(
     return errs
 
 
+OVERSHOOT_SAMPLES_PER_POINT = 4
+"""Samples per collocation point at which :func:`control_overshoot` evaluates a segment's control interpolant."""
+
+
+def control_overshoot(lay: MeshLayout, u: np.ndarray, lb: np.ndarray, ub: np.ndarray,
+                      path: Callable[[np.ndarray], np.ndarray] | None = None,
+                      path_lb: np.ndarray | None = None, path_ub: np.ndarray | None = None) -> np.ndarray:
+    """Per segment, how far the control interpolant passes the control bounds (and ``path``'s, if given) anywhere
+    in the segment (controls' own units; 0 where it stays within).
+
+    The NLP holds the bounds at the collocation points and at the midpoints between them; a high-degree
+    interpolant of a control that rides a bound can still bulge past it in between. ``u`` is (Nc, nu);
+    ``path`` maps (nu, K) controls to (nc, K) values.
+    """
+    out = np.zeros(lay.mesh.n_segments)
+    for s, n in enumerate(lay.mesh.degrees):
+        o = lay.offsets[s]
+        seg = u[o:o + n]
+        at = np.linspace(-1.0, 1.0, OVERSHOOT_SAMPLES_PER_POINT * n + 1)
+        v = seg if n == 1 else lagrange_matrix(lgr_nodes(n), at) @ seg
+        excess = np.maximum(lb - v, v - ub)
+        worst = float(np.max(excess)) if excess.size else 0.0
+        if path is not None:
+            c = np.asarray(path(v.T))
+            worst = max(worst, float(np.max(np.maximum(path_lb[:, None] - c, c - path_ub[:, None]))))
+        out[s] = max(worst, 0.0)
+    return out
+
+
 SegmentErrors = dict[tuple[float, float], tuple[int, float]]
 """A phase's segments by their breaks (rounded) -> (degree, estimated error), to compare mesh iterations."""
 
@@ -142,7 +171,7 @@ def segment_errors(mesh: PhaseMesh, errors: np.ndarray) -> SegmentErrors:
 
 
 def refine(mesh: PhaseMesh, errors: np.ndarray, tol: float, n_min: int, n_max: int,
-           previous: SegmentErrors | None = None) -> PhaseMesh:
+           previous: SegmentErrors | None = None, split: np.ndarray | None = None) -> PhaseMesh:
     """One ph step on the segments whose error exceeds ``tol``.
 
     The degree is raised by P = ceil(log(e/tol) / log N) + 1 while N + P <= n_max (Patterson, Hager & Rao 2015,
@@ -154,12 +183,18 @@ def refine(mesh: PhaseMesh, errors: np.ndarray, tol: float, n_min: int, n_max: i
     gain a factor of three (real-size traffic, at the final approach). Halves keep the segment's degree
     before that raise (at least ``n_min``); the paper's split into ceil((N + P) / n_min) segments of degree
     n_min raised the error tenfold on the thesis (8.4e-5 -> 8.0e-4) and the refinement oscillated.
+    Segments marked in ``split`` (their control interpolant bulges past a bound, see :func:`control_overshoot`)
+    are halved whatever their error: a higher degree would bulge more.
     """
     breaks: list[float] = [mesh.breaks[0]]
     degs: list[int] = []
     for s, n in enumerate(mesh.degrees):
         a, b = mesh.breaks[s], mesh.breaks[s + 1]
         e = float(errors[s])
+        if split is not None and split[s]:
+            breaks.extend([0.5 * (a + b), b])
+            degs.extend([max(n, n_min)] * 2)
+            continue
         if not e > tol:
             breaks.append(b)
             degs.append(n)

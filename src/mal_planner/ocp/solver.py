@@ -11,11 +11,11 @@ from typing import Any
 import casadi as ca
 import numpy as np
 
-from .mesh import estimate_errors, refine, segment_errors
+from .mesh import control_overshoot, estimate_errors, refine, segment_errors
 from .nodes import midpoint_functions, node_functions
 from .problem import PhaseGuess, PhaseMesh, Problem
 from .solution import MeshIteration, OCPSolution, PhaseSolution
-from .transcription import IterationWatch, Transcription, phase_function
+from .transcription import IterationWatch, Transcription, _bounds, _col, phase_function
 
 log = logging.getLogger("mal_planner.ocp")
 
@@ -50,6 +50,10 @@ class OCPOptions:
     structured_derivatives: bool = True
     """Give IPOPT the constraint Jacobian and the Lagrangian's Hessian assembled from each node's own derivatives
     (:mod:`mal_planner.ocp.nodes`); False: CasADi differentiates the whole NLP (the same numbers, slower)."""
+    control_overshoot_tol: float | None = None
+    """Split the segments whose control interpolant passes the control bounds (or ``control_path``'s) by more
+    than this anywhere between the points where the NLP holds them (controls' units; None: no check). A caller
+    whose bounds are a margin inside hard limits sets the margin: the interpolant then never passes the limits."""
     cached_nlps: int = 3
     """NLPs kept for re-solves (least recently used dropped): a replan reuses the final mesh's; the
     intermediate meshes of a refinement would otherwise hold memory (20 aircraft: ~300 MB each)."""
@@ -100,6 +104,7 @@ class OCPSolver:
         self._state_scales = [ph.scales()[0] for ph in problem.phases]
         """The error estimate works on the states as the NLP sees them (divided by their scales), so that its
         relative error means the same in a scenario of any size."""
+        self._control_paths = [_control_path_eval(ph) for ph in problem.phases]
         self._cache: OrderedDict[MeshKey, Transcription] = OrderedDict()
         self._nlp_opts = {False: self.options.nlpsol_options(), True: self.options.nlpsol_options(True)}
         self.n_builds = 0
@@ -198,6 +203,7 @@ class OCPSolver:
                 for i, ps in enumerate(sol.phases)
             )
             max_err = max((float(e.max()) for e in errors if e.size), default=0.0)
+            bulges = self._bulging_segments(sol)
             rec = MeshIteration(
                 iteration=it,
                 segments=tuple(m.n_segments for m in cur),
@@ -211,12 +217,14 @@ class OCPSolver:
                 nlp_success=res.success,
             )
             history.append(rec)
+            n_bulging = sum(int(b.sum()) for b in bulges)
             log.info(
-                "mesh iter %d: segments=%s degrees=%s max_err=%.3e nlp_iter=%d nlp_time=%.3fs build=%.3fs %s",
+                "mesh iter %d: segments=%s degrees=%s max_err=%.3e%s nlp_iter=%d nlp_time=%.3fs build=%.3fs %s",
                 it,
                 rec.segments,
                 rec.degrees,
                 max_err,
+                f" controls_past_bounds={n_bulging}" if n_bulging else "",
                 res.iterations,
                 res.solve_time,
                 rec.build_time,
@@ -229,7 +237,7 @@ class OCPSolver:
                 break
             if best is None or max_err <= best.max_error:
                 best, best_iteration = sol, it
-            if max_err <= opt.mesh_tol:
+            if max_err <= opt.mesh_tol and not n_bulging:
                 converged = True
                 break
             if not do_refine:
@@ -237,8 +245,8 @@ class OCPSolver:
             if it - best_iteration >= 2:
                 log.info("mesh refinement stalled: no better error in 2 iterations; stopping")
                 break
-            new = tuple(refine(m, e, opt.mesh_tol, opt.n_min, opt.n_max, before)
-                        for m, e, before in zip(cur, errors, previous, strict=True))
+            new = tuple(refine(m, e, opt.mesh_tol, opt.n_min, opt.n_max, before, split)
+                        for m, e, before, split in zip(cur, errors, previous, bulges, strict=True))
             previous = [segment_errors(m, e) for m, e in zip(cur, errors, strict=True)]
             key = tuple(m.key() for m in new)
             if key in visited:
@@ -264,6 +272,19 @@ class OCPSolver:
         sol.success = sol.nlp_success
         return sol
 
+    def _bulging_segments(self, sol: OCPSolution) -> list[np.ndarray]:
+        """Per phase, the segments whose control interpolant passes a bound by more than the tolerance."""
+        tol = self.options.control_overshoot_tol
+        out = []
+        for ph, ps, path in zip(self.problem.phases, sol.phases, self._control_paths, strict=True):
+            if tol is None or not ph.nu:
+                out.append(np.zeros(ps.layout.mesh.n_segments, bool))
+                continue
+            b = ph.bounds()
+            over = control_overshoot(ps.layout, ps.u[:-1], b["u_lb"], b["u_ub"], *path)
+            out.append(over > tol)
+        return out
+
     def _make_solution(self, tr: Transcription, res, params: np.ndarray) -> OCPSolution:
         phases = []
         q = np.asarray(tr.integrals(res.w, params)).reshape(-1)
@@ -285,3 +306,17 @@ class OCPSolver:
             max_error=float("nan"),
             w=res.w,
         )
+
+
+def _control_path_eval(phase) -> tuple:
+    """(path, lb, ub): the phase's ``control_path`` as a numeric function of (nu, K) controls, or (None,)."""
+    if phase.control_path is None or not phase.nu:
+        return (None,)
+    u = ca.SX.sym("u", phase.nu)
+    fun = ca.Function(f"{phase.name}_control_path", [u], [_col(phase.control_path(u))])
+    n = fun.size1_out(0)
+
+    def path(v: np.ndarray) -> np.ndarray:
+        return np.asarray(fun.map(v.shape[1])(v))
+
+    return path, _bounds(phase.control_path_lb, n, -np.inf), _bounds(phase.control_path_ub, n, np.inf)
