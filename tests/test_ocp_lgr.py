@@ -14,7 +14,7 @@ from mal_planner.ocp import (
     lgr_weights,
 )
 from mal_planner.ocp.lgr import support_points
-from mal_planner.ocp.mesh import control_overshoot, estimate_errors, layout, refine
+from mal_planner.ocp.mesh import control_overshoot, estimate_errors, layout, path_overshoot, refine
 
 
 def test_known_nodes_and_weights() -> None:
@@ -121,3 +121,20 @@ def test_control_overshoot_finds_bulges_between_nodes_and_splits_them() -> None:
     assert over[1] == pytest.approx(dense.max() - 1.0, rel=0.05)
     refined = refine(mesh, np.zeros(2), 1e-6, 3, 10, split=over > 1e-3)
     assert refined.breaks == (0.0, 0.5, 0.75, 1.0) and refined.degrees == (6, 6, 6)
+
+
+def test_path_overshoot_finds_states_past_a_path_bound_between_nodes() -> None:
+    """A state at or above 0 at every node of a segment but dipping below 0 between two of them (a path cutting an
+    obstacle's corner) marks that segment, unless the dip is within the tolerance."""
+    mesh = PhaseMesh((0.0, 0.5, 1.0), (3, 3))
+    lay = layout(mesh)
+    x = np.ones((lay.n_nodes, 1))
+    x[4:6, 0] = 0.0  # two adjacent nodes of the second segment on the bound: its cubic dips between them
+    u = np.zeros((lay.n_col, 1))
+
+    def path(xs: np.ndarray, us: np.ndarray, ts: np.ndarray) -> np.ndarray:
+        return xs[:1]
+
+    lb, ub = np.array([0.0]), np.array([np.inf])
+    assert path_overshoot(lay, 0.0, 10.0, x, u, path, lb, ub, np.array([1e-3])).tolist() == [False, True]
+    assert path_overshoot(lay, 0.0, 10.0, x, u, path, lb, ub, np.array([10.0])).tolist() == [False, False]

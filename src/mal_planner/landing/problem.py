@@ -421,6 +421,10 @@ def _phase(ctx: _Context, k: int, who: list[int], mesh: PhaseMesh, guess_span: t
     p_ub += [math.inf] * n_sep
     # Obstacle rows are dimensionless already; squared distances are scaled by the squared separation.
     p_scale = [1.0] * (len(p_lb) - n_sep) + [zone.scale] * n_sep
+    # Between the points, a bulky obstacle's row may pass its bound only while the path keeps half the obstacle
+    # margin (on the largest semi-axis: the smallest ln-norm change per nm); thin pieces and separations: unchecked.
+    p_tol = [margins.clearance - math.log1p(-0.5 * margins.obstacle_nm / max(ob.semi_axes)) if ob in bulky[j]
+             else math.inf for j in range(n_ac) for ob in relevant[j]] + [math.inf] * n_sep
 
     return Phase(
         name=layout.phase_name(k),
@@ -431,6 +435,7 @@ def _phase(ctx: _Context, k: int, who: list[int], mesh: PhaseMesh, guess_span: t
         path=path,
         path_lb=p_lb,
         path_ub=p_ub,
+        path_overshoot_tol=p_tol,
         state_lb=x_lb,
         state_ub=x_ub,
         final_state_lb=xf_lb,

@@ -161,6 +161,30 @@ def control_overshoot(lay: MeshLayout, u: np.ndarray, lb: np.ndarray, ub: np.nda
     return out
 
 
+def path_overshoot(lay: MeshLayout, t0: float, tf: float, x: np.ndarray, u: np.ndarray,
+                   path: Callable[[np.ndarray, np.ndarray, np.ndarray], np.ndarray],
+                   lb: np.ndarray, ub: np.ndarray, tol: np.ndarray) -> np.ndarray:
+    """Per segment, whether some path value passes its bounds by more than its ``tol`` anywhere in the segment,
+    on the state polynomial and the control interpolant. ``x`` is (Nk, nx), ``u`` (Nc, nu); ``path(X, U, T)``
+    maps columns to (nc, K) values."""
+    mesh = lay.mesh
+    xs, us, ts, owner = [], [], [], []
+    for s, n in enumerate(mesh.degrees):
+        o = lay.offsets[s]
+        at = np.linspace(-1.0, 1.0, OVERSHOOT_SAMPLES_PER_POINT * n + 1)
+        xs.append(lagrange_matrix(support_points(n), at) @ x[o:o + n + 1])
+        us.append(u[o:o + 1].repeat(at.size, axis=0) if n == 1 else lagrange_matrix(lgr_nodes(n), at) @ u[o:o + n])
+        a, b = mesh.breaks[s], mesh.breaks[s + 1]
+        ts.append(t0 + (tf - t0) * (a + (b - a) * (at + 1.0) / 2.0))
+        owner.append(np.full(at.size, s))
+    c = path(np.vstack(xs).T, np.vstack(us).T, np.concatenate(ts))
+    excess = np.maximum(lb[:, None] - c, c - ub[:, None]) - tol[:, None]
+    bad = np.any(excess > 0.0, axis=0)
+    out = np.zeros(mesh.n_segments, bool)
+    out[np.concatenate(owner)[bad]] = True
+    return out
+
+
 SegmentErrors = dict[tuple[float, float], tuple[int, float]]
 """A phase's segments by their breaks (rounded) -> (degree, estimated error), to compare mesh iterations."""
 

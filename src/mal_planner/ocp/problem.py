@@ -93,6 +93,11 @@ class Phase:
     path: SXFun | None = None
     path_lb: Sequence[float] | float | None = None
     path_ub: Sequence[float] | float | None = None
+    path_overshoot_tol: Sequence[float] | float | None = None
+    """How far each ``path`` value may pass its bounds between the points where the NLP holds it, on the
+    solution's interpolants (path units; None or inf: not checked). Segments that pass by more are halved in
+    the mesh refinement: a path that rides an obstacle's corner cuts it between the points, and the cut only
+    shrinks with the points' spacing."""
     state_lb: Sequence[float] | float | None = None
     state_ub: Sequence[float] | float | None = None
     control_lb: Sequence[float] | float | None = None

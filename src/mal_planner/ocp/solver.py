@@ -11,7 +11,7 @@ from typing import Any
 import casadi as ca
 import numpy as np
 
-from .mesh import control_overshoot, estimate_errors, refine, segment_errors
+from .mesh import control_overshoot, estimate_errors, path_overshoot, refine, segment_errors
 from .nodes import midpoint_functions, node_functions
 from .problem import PhaseGuess, PhaseMesh, Problem
 from .solution import MeshIteration, OCPSolution, PhaseSolution
@@ -203,7 +203,8 @@ class OCPSolver:
                 for i, ps in enumerate(sol.phases)
             )
             max_err = max((float(e.max()) for e in errors if e.size), default=0.0)
-            bulges = self._bulging_segments(sol)
+            bulges = [b | cut for b, cut in zip(self._bulging_segments(sol), self._cutting_segments(sol, p),
+                                                 strict=True)]
             rec = MeshIteration(
                 iteration=it,
                 segments=tuple(m.n_segments for m in cur),
@@ -224,7 +225,7 @@ class OCPSolver:
                 rec.segments,
                 rec.degrees,
                 max_err,
-                f" controls_past_bounds={n_bulging}" if n_bulging else "",
+                f" segments_past_bounds={n_bulging}" if n_bulging else "",
                 res.iterations,
                 res.solve_time,
                 rec.build_time,
@@ -283,6 +284,25 @@ class OCPSolver:
             b = ph.bounds()
             over = control_overshoot(ps.layout, ps.u[:-1], b["u_lb"], b["u_ub"], *path)
             out.append(over > tol)
+        return out
+
+    def _cutting_segments(self, sol: OCPSolution, params: np.ndarray) -> list[np.ndarray]:
+        """Per phase, the segments whose interpolants pass a path bound by more than the phase's
+        ``path_overshoot_tol`` between the points where the NLP holds it."""
+        out = []
+        for i, (ph, ps) in enumerate(zip(self.problem.phases, sol.phases, strict=True)):
+            tol = _bounds(ph.path_overshoot_tol, self._funcs[i].size1_out(2), np.inf)
+            if not np.any(np.isfinite(tol)):
+                out.append(np.zeros(ps.layout.mesh.n_segments, bool))
+                continue
+
+            def path(x: np.ndarray, u: np.ndarray, t: np.ndarray, i: int = i) -> np.ndarray:
+                return np.asarray(self._funcs[i].map(t.size)(x, u, t.reshape(1, -1), params)[2])
+
+            b_lb = _bounds(ph.path_lb, tol.size, -np.inf)
+            b_ub = _bounds(ph.path_ub, tol.size, np.inf)
+            out.append(path_overshoot(ps.layout, ps.t0, ps.tf, ps.x, ps.u[:-1], path, b_lb, b_ub,
+                                      np.where(np.isfinite(tol), tol, np.inf)))
         return out
 
     def _make_solution(self, tr: Transcription, res, params: np.ndarray) -> OCPSolution:
