@@ -3,16 +3,20 @@
 from __future__ import annotations
 
 import copy
+import json
+import math
 from dataclasses import asdict
 from pathlib import Path
 
 import numpy as np
 import pytest
 import yaml
+from pymap3d.vincenty import vdist
 
 from mal_planner.geo import GeoFrame
 from mal_planner.geo.convert import geodetic_copy, main
 from mal_planner.scenario import ScenarioError, load_scenario, parse_scenario
+from mal_planner.units import ft_to_m, m_to_nm
 
 LOCAL, GEODETIC = Path("scenarios/thesis.yaml"), Path("scenarios/thesis_geodetic.yaml")
 
@@ -45,10 +49,15 @@ def test_thesis_geodetic_is_the_thesis(scenarios) -> None:
     _assert_same_scenario(local, geo)
 
 
-def test_thesis_geodetic_plans_the_same(scenarios) -> None:
+@pytest.fixture(scope="module")
+def plans(scenarios):
     from mal_planner.pipeline import PlanOptions, plan
 
-    a, b = (plan(sc, PlanOptions(seed=0)) for sc in scenarios)
+    return tuple(plan(sc, PlanOptions(seed=0)) for sc in scenarios)
+
+
+def test_thesis_geodetic_plans_the_same(plans) -> None:
+    a, b = plans
     assert a.verification.verified and b.verification.verified
     assert b.landing_times() == pytest.approx(a.landing_times(), abs=1e-9)
     for ta, tb in zip(a.trajectories(), b.trajectories(), strict=True):
@@ -119,3 +128,33 @@ def test_converter_refuses_a_runway_off_the_origin(tmp_path: Path, capsys) -> No
     src.write_text(yaml.safe_dump(data))
     assert main([str(src), "--threshold", "49", "2.5", "300", "--course", "90", "-o", str(tmp_path / "o.yaml")]) == 2
     assert "only a runway at the origin" in capsys.readouterr().err
+
+
+def test_plan_json_carries_lat_lon_alt(plans) -> None:
+    from mal_planner.report import result_to_dict
+
+    local, geo = (json.loads(json.dumps(result_to_dict(p), allow_nan=False)) for p in plans)
+    assert local["scenario"]["geo_frame"] is None
+    assert "lat_deg" not in local["aircraft"][0]["trajectory"]
+    frame = geo["scenario"]["geo_frame"]
+    assert frame["datum"] == "WGS84" and frame["course_deg"] == 265.43
+    assert frame["origin"] == {"lat_deg": 49.02667786, "lon_deg": 2.56169447, "elevation_ft": 392.0}
+    given = {ac["callsign"]: ac for ac in yaml.safe_load(GEODETIC.read_text())["aircraft"]}
+    for ac in geo["aircraft"]:
+        tr = ac["trajectory"]
+        assert len(tr["lat_deg"]) == len(tr["lon_deg"]) == len(tr["alt_ft"]) == len(tr["t"])
+        # the first sample is where the file put the aircraft; the last is the threshold (touchdown)
+        first = given[ac["callsign"]]
+        assert (tr["lat_deg"][0], tr["lon_deg"][0], m_to_nm(ft_to_m(tr["alt_ft"][0]))) == pytest.approx(
+            (first["lat"], first["lon"], m_to_nm(ft_to_m(first["alt_ft"]))), abs=1e-11)  # 1e-11 deg: 6e-10 nm
+        # geodesic distance and azimuth from the threshold (Vincenty, not the ENU path) match the local position:
+        # the last sample is at the threshold (crossed at the airspace margin, 0.001 nm, above and behind it)
+        for k in (0, -1):
+            dist_m, az = vdist(49.02667786, 2.56169447, tr["lat_deg"][k], tr["lon_deg"][k])
+            x, y = tr["x"][k], tr["y"][k]
+            assert m_to_nm(dist_m) == pytest.approx(math.hypot(x, y), abs=1e-3)
+            assert az == pytest.approx((90.0 - math.degrees(math.atan2(y, x)) + 265.43 - 180.0) % 360.0, abs=1e-3)
+        assert m_to_nm(ft_to_m(tr["alt_ft"][-1] - 392.0)) == pytest.approx(tr["z"][-1], abs=1e-6)
+        # and every sample maps back onto the local one
+        back = GeoFrame(49.02667786, 2.56169447, 392.0, 265.43).to_local(tr["lat_deg"], tr["lon_deg"], tr["alt_ft"])
+        np.testing.assert_allclose(back, np.column_stack([tr["x"], tr["y"], tr["z"]]), rtol=0, atol=1e-9)
