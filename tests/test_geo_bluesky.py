@@ -129,3 +129,13 @@ def test_bluesky_flies_the_thesis_plan(geodetic, tmp_path: Path) -> None:
         planned = np.column_stack([np.interp(rows[:, 0], tr.t, tr.states[:, k]) for k in range(3)])
         deviation = np.linalg.norm(local - planned, axis=1)
         assert deviation.max() < 0.05, f"{tr.callsign}: {deviation.max():.4f} nm"
+
+
+def test_outputs_of_a_geodetic_plan_include_the_scn(initial_plan, tmp_path: Path) -> None:
+    from mal_planner.report import write_outputs
+
+    written = write_outputs(initial_plan, tmp_path / "geo", figures="none")
+    assert [p.name for p in written] == ["plan.json", "report.md", "plan.scn"]
+    assert (tmp_path / "geo" / "plan.scn").read_text() == "\n".join(scn_lines(initial_plan)) + "\n"
+    local = plan(load_scenario("scenarios/thesis.yaml"), PlanOptions(seed=0, optimize=False))
+    assert [p.name for p in write_outputs(local, tmp_path / "local", figures="none")] == ["plan.json", "report.md"]

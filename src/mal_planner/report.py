@@ -175,12 +175,17 @@ def _write_text(path: Path, text: str) -> Path:
 
 
 def write_outputs(result: PlanResult, out_dir: Path, figures: str | bool = "all") -> list[Path]:
-    """Write plan.json, report.md, then the figures (see :func:`write_figures`) into ``out_dir``."""
+    """Write plan.json, report.md, plan.scn (BlueSky; geodetic scenarios), then the figures (see
+    :func:`write_figures`) into ``out_dir``."""
     out_dir = Path(out_dir)
     out_dir.mkdir(parents=True, exist_ok=True)
     doc = result_to_dict(result)
     written = [_write_text(out_dir / "plan.json", json.dumps(doc, indent=1, allow_nan=False) + "\n"),
                _write_text(out_dir / "report.md", validation_report(result))]
+    if result.scenario.geo_frame is not None:  # on the Earth: the plan as a BlueSky scenario too
+        from mal_planner.geo.bluesky import scn_lines
+
+        written.append(_write_text(out_dir / "plan.scn", "\n".join(scn_lines(result)) + "\n"))
     return written + write_figures(doc, out_dir, figures)
 
 
