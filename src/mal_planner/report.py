@@ -28,7 +28,18 @@ def _scenario(result: PlanResult) -> dict:
     sc = result.scenario
     return {"name": sc.name, "source": sc.source, "airspace": sc.airspace.tolist(),
             "runway": sc.runway_state.tolist(), "separation_nm": sc.separation_nm,
-            "obstacles": [asdict(ob) for ob in sc.obstacles], "gates": [asdict(g) for g in sc.gates]}
+            "obstacles": [asdict(ob) for ob in sc.obstacles], "gates": [asdict(g) for g in sc.gates],
+            "geo_frame": None if sc.geo_frame is None else sc.geo_frame.describe()}
+
+
+def _trajectory(result: PlanResult, columns: dict) -> dict:
+    """A trajectory's columns, with ``lat_deg``, ``lon_deg``, ``alt_ft`` per sample when the scenario is on the
+    Earth."""
+    frame = result.scenario.geo_frame
+    if frame is None:
+        return columns
+    lat, lon, alt = frame.to_geodetic(np.column_stack([columns["x"], columns["y"], columns["z"]]))
+    return {**columns, "lat_deg": lat.tolist(), "lon_deg": lon.tolist(), "alt_ft": alt.tolist()}
 
 
 def _limits(result: PlanResult, callsign: str) -> dict:
@@ -59,7 +70,7 @@ def result_to_dict(result: PlanResult) -> dict:
                 "direct_path": np.asarray(tr.direct_path).tolist(),
             },
             "limits": _limits(result, tr.callsign),
-            "trajectory": trajectories[tr.callsign].to_dict(),
+            "trajectory": _trajectory(result, trajectories[tr.callsign].to_dict()),
         })
     status = "optimal" if result.optimized else ("failed" if result.landing is not None else "initial_guess")
     return {
@@ -164,12 +175,17 @@ def _write_text(path: Path, text: str) -> Path:
 
 
 def write_outputs(result: PlanResult, out_dir: Path, figures: str | bool = "all") -> list[Path]:
-    """Write plan.json, report.md, then the figures (see :func:`write_figures`) into ``out_dir``."""
+    """Write plan.json, report.md, plan.scn (BlueSky; geodetic scenarios), then the figures (see
+    :func:`write_figures`) into ``out_dir``."""
     out_dir = Path(out_dir)
     out_dir.mkdir(parents=True, exist_ok=True)
     doc = result_to_dict(result)
     written = [_write_text(out_dir / "plan.json", json.dumps(doc, indent=1, allow_nan=False) + "\n"),
                _write_text(out_dir / "report.md", validation_report(result))]
+    if result.scenario.geo_frame is not None:  # on the Earth: the plan as a BlueSky scenario too
+        from mal_planner.geo.bluesky import scn_lines
+
+        written.append(_write_text(out_dir / "plan.scn", "\n".join(scn_lines(result)) + "\n"))
     return written + write_figures(doc, out_dir, figures)
 
 

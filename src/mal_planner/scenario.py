@@ -3,6 +3,12 @@
 The file gives angles in degrees; everything returned by :func:`load_scenario` is in radians. Any
 problem is reported as a :class:`ScenarioError` whose message is one line naming the file, the field
 and the reason.
+
+A file is local (the default: the runway frame in nm, speeds in nm/s) or places its runway on the Earth
+(``runway: {threshold: {lat, lon, elevation_ft}, course_deg}``); then aircraft may be given in lat/lon/ft
+with true tracks and speeds in kt. :func:`localize` converts such a file to the local frame (the one place,
+through :class:`mal_planner.geo.GeoFrame`) before anything else sees it; airspace, obstacles and gates
+stay in the runway frame (nm) in both kinds of file.
 """
 
 from __future__ import annotations
@@ -14,13 +20,18 @@ from typing import Annotated, Any, Literal
 
 import numpy as np
 import yaml
-from pydantic import BaseModel, ConfigDict, Field, ValidationError, field_validator, model_validator
+from pydantic import BaseModel, ConfigDict, Discriminator, Field, Tag, ValidationError, field_validator, model_validator
 
 from mal_planner.dynamics import DYNAMICS_MODELS, ControlLimits, DynamicsModel, make_dynamics
+from mal_planner.geo.frame import GeoFrame
 from mal_planner.obstacles import Gate, Superquadric, wall_with_hole
-from mal_planner.units import ft_to_nm
+from mal_planner.units import ft_to_nm, kt_to_nm_per_s
 
 AXIS_INDEX = {"x": 0, "y": 1, "z": 2}
+
+GEODETIC_ROUND_OFF = 1e-9
+"""Relative to the airspace's largest extent: how near its boundary a converted geodetic position is taken to be
+on it (the conversion's own round-off is about 1e-12 of the distance from the threshold)."""
 
 
 class ScenarioError(ValueError):
@@ -63,14 +74,9 @@ class LimitsConfig(_Strict):
         return ControlLimits(n_h=self.n_h, n_v=self.n_v, bank_angle_max=float(np.radians(self.bank_angle_deg)))
 
 
-class AircraftConfig(_Strict):
+class _AircraftCommon(_Strict):
     callsign: str = Field(min_length=1, max_length=16, pattern=r"^[A-Za-z0-9_]+$")
-    position: Vec3
-    """Initial x, y, z in nm."""
     flight_path_angle_deg: float = Field(ge=-30.0, le=30.0)
-    heading_deg: float = Field(ge=-360.0, le=360.0)
-    speed: float = Field(gt=0.0, le=1.0)
-    """Constant airspeed in nm/s."""
     model: str = "point_mass"
     wake_category: Literal["L", "M", "H", "J"] | None = None
     landing_time: float | None = Field(None, gt=0.0)
@@ -86,10 +92,81 @@ class AircraftConfig(_Strict):
         return value
 
 
+class AircraftConfig(_AircraftCommon):
+    """An aircraft in the local frame."""
+
+    position: Vec3
+    """Initial x, y, z in nm."""
+    heading_deg: float = Field(ge=-360.0, le=360.0)
+    speed: float = Field(gt=0.0, le=1.0)
+    """Constant airspeed in nm/s."""
+
+
+class GeoAircraftConfig(_AircraftCommon):
+    """An aircraft on the Earth (needs a geodetic runway); the flight-path angle is the velocity's, as in the local
+    format."""
+
+    lat: float = Field(ge=-90.0, le=90.0)
+    lon: float = Field(ge=-180.0, le=180.0)
+    alt_ft: float = Field(ge=-1500.0, le=60000.0)
+    """Altitude in ft, in the datum of the runway's ``elevation_ft``."""
+    track_deg: float = Field(ge=-360.0, le=360.0)
+    """True track, clockwise from true north at the aircraft."""
+    speed_kt: float = Field(gt=0.0, le=3600.0)
+    """Constant true airspeed in knots (no wind: also the ground speed)."""
+
+    def to_local(self, frame: GeoFrame) -> AircraftConfig:
+        heading, gamma = frame.direction_to_local(self.lat, self.lon, self.track_deg, self.flight_path_angle_deg)
+        common = self.model_dump(include=set(_AircraftCommon.model_fields))
+        return AircraftConfig(**{**common, "flight_path_angle_deg": math.degrees(gamma)},
+                              position=tuple(float(v) for v in frame.to_local(self.lat, self.lon, self.alt_ft)),
+                              heading_deg=math.degrees(heading), speed=kt_to_nm_per_s(self.speed_kt))
+
+
+def _is_geodetic_aircraft(value: Any) -> str:
+    geo = isinstance(value, dict) and bool({"lat", "lon", "alt_ft", "track_deg", "speed_kt"} & set(value))
+    return "geodetic" if geo or isinstance(value, GeoAircraftConfig) else "local"
+
+
+AnyAircraftConfig = Annotated[Annotated[AircraftConfig, Tag("local")] | Annotated[GeoAircraftConfig, Tag("geodetic")],
+                              Discriminator(_is_geodetic_aircraft)]
+
+
 class RunwayConfig(_Strict):
+    """The runway in the local frame."""
+
     position: Vec3 = (0.0, 0.0, 0.0)
     flight_path_angle_deg: float = Field(0.0, ge=-10.0, le=10.0)
     heading_deg: float = -90.0
+
+
+class ThresholdConfig(_Strict):
+    lat: float = Field(ge=-90.0, le=90.0)
+    lon: float = Field(ge=-180.0, le=180.0)
+    elevation_ft: float = Field(0.0, ge=-1500.0, le=20000.0)
+    """Height of the threshold in ft (the datum of the aircraft's ``alt_ft``)."""
+
+
+class GeoRunwayConfig(_Strict):
+    """The runway on the Earth: the origin of the local frame, which turns the landing direction to -y."""
+
+    threshold: ThresholdConfig
+    course_deg: float = Field(ge=0.0, lt=360.0)
+    """True course of the landing direction, clockwise from true north."""
+    flight_path_angle_deg: float = Field(0.0, ge=-10.0, le=10.0)
+
+    def frame(self) -> GeoFrame:
+        t = self.threshold
+        return GeoFrame(lat_deg=t.lat, lon_deg=t.lon, elevation_ft=t.elevation_ft, course_deg=self.course_deg)
+
+
+def _is_geodetic_runway(value: Any) -> str:
+    geo = (isinstance(value, dict) and "threshold" in value) or isinstance(value, GeoRunwayConfig)
+    return "geodetic" if geo else "local"
+
+
+AnyRunwayConfig = Annotated[Annotated[RunwayConfig, Tag("local")] | Annotated[GeoRunwayConfig, Tag("geodetic")],
+                            Discriminator(_is_geodetic_runway)]
 
 
 class AirspaceConfig(_Strict):
@@ -251,9 +328,9 @@ class ScenarioConfig(_Strict):
     description: str = ""
     gravity: float = Field(0.0052952, gt=0.0)
     """g in nm/s^2."""
-    runway: RunwayConfig = RunwayConfig()
+    runway: AnyRunwayConfig = RunwayConfig()
     airspace: AirspaceConfig
-    aircraft: list[AircraftConfig] = Field(min_length=1)
+    aircraft: list[AnyAircraftConfig] = Field(min_length=1)
     obstacles: list[ObstacleConfig] = []
     gates: list[GateConfig] = []
     separation: SeparationConfig = SeparationConfig()
@@ -266,6 +343,15 @@ class ScenarioConfig(_Strict):
             if ac.callsign in seen:
                 raise ValueError(f"aircraft[{i}].callsign: duplicate callsign {ac.callsign!r}")
             seen.add(ac.callsign)
+        return self
+
+    @model_validator(mode="after")
+    def _geodetic_needs_threshold(self) -> ScenarioConfig:
+        if not isinstance(self.runway, GeoRunwayConfig):
+            for i, ac in enumerate(self.aircraft):
+                if isinstance(ac, GeoAircraftConfig):
+                    raise ValueError(f"aircraft[{i}].lat: an aircraft in lat/lon needs the runway on the Earth "
+                                     "(runway: {threshold: {lat, lon, elevation_ft}, course_deg})")
         return self
 
 
@@ -308,9 +394,12 @@ class Scenario:
     max_landing_spacing_s: float
     gravity: float
     config: ScenarioConfig
+    """The file's configuration in the local frame (a geodetic file's converted by :func:`localize`)."""
     source: str = "<scenario>"
     vertical_separation_nm: float | None = None
     """The vertical minimum of a cylindrical protected zone (separated: horizontally OR vertically); None: sphere."""
+    geo_frame: GeoFrame | None = None
+    """Where the local frame lies on the Earth, for a scenario whose runway has a threshold; None: local only."""
 
     @property
     def separation_radius_nm(self) -> float:
@@ -350,15 +439,44 @@ def _format_location(loc: tuple[Any, ...]) -> str:
     for part in loc:
         if isinstance(part, int):
             out += f"[{part}]"
-        elif part in ("superquadric", "wall_with_hole"):
+        elif part in ("superquadric", "wall_with_hole", "local", "geodetic"):
             continue  # pydantic's discriminator tag, not a field of the file
         else:
             out += f".{part}" if out else str(part)
     return out
 
 
+def localize(config: ScenarioConfig) -> tuple[ScenarioConfig, GeoFrame | None]:
+    """The config in the local frame and the runway's frame on the Earth (None for a local file).
+
+    The one place where geodetic inputs become local: the runway's threshold is the origin, its landing
+    direction the heading -90 deg; aircraft given in lat/lon/ft/kt are converted by :class:`GeoFrame`.
+    """
+    if not isinstance(config.runway, GeoRunwayConfig):
+        return config, None
+    frame = config.runway.frame()
+    runway = RunwayConfig(position=(0.0, 0.0, 0.0), flight_path_angle_deg=config.runway.flight_path_angle_deg,
+                          heading_deg=-90.0)
+    airspace = np.array([config.airspace.x, config.airspace.y, config.airspace.z], dtype=float)
+    # A position given on the airspace's boundary converts to within the conversion's round-off of it (about
+    # 1e-12 of its distance from the threshold): put it back on the boundary, so the file means what it says.
+    snap = GEODETIC_ROUND_OFF * float(np.max(airspace[:, 1] - airspace[:, 0]))
+    aircraft = []
+    for ac in config.aircraft:
+        if isinstance(ac, GeoAircraftConfig):
+            ac = ac.to_local(frame)
+            p = np.array(ac.position)
+            near = (np.abs(p - airspace[:, 0]) <= snap) | (np.abs(p - airspace[:, 1]) <= snap)
+            p[near] = np.clip(p, airspace[:, 0], airspace[:, 1])[near]
+            ac = ac.model_copy(update={"position": tuple(float(v) for v in p)})
+        aircraft.append(ac)
+    return config.model_copy(update={"runway": runway, "aircraft": aircraft}), frame
+
+
 def build_scenario(config: ScenarioConfig, source: str = "<scenario>") -> Scenario:
     """Convert a validated config to planner units and check the geometry (raises ScenarioError)."""
+    given = config
+    config, frame = localize(config)
     obstacles: list[Superquadric] = []
     gates = [g.to_gate() for g in config.gates]
     for spec in config.obstacles:
@@ -376,12 +494,16 @@ def build_scenario(config: ScenarioConfig, source: str = "<scenario>") -> Scenar
         limits = ac.limits.to_limits() if ac.limits else (
             config.limits.to_limits() if "limits" in config.model_fields_set else dyn.default_limits)
         aircraft.append(Aircraft(ac.callsign, state0, dyn, limits, ac.wake_category, ac.landing_time))
-        where = f"aircraft[{i}].position"
+        where, what = f"aircraft[{i}].position", str(list(ac.position))
+        if isinstance(geo := given.aircraft[i], GeoAircraftConfig):
+            where = f"aircraft[{i}].lat/lon/alt_ft"
+            what = (f"lat {geo.lat}, lon {geo.lon}, alt {geo.alt_ft} ft (local "
+                    f"{[round(float(v), 3) for v in state0[:3]]} nm)")
         if not np.all((state0[:3] >= airspace[:, 0]) & (state0[:3] <= airspace[:, 1])):
-            raise ScenarioError(source, where, f"{list(ac.position)} is outside the airspace")
+            raise ScenarioError(source, where, f"{what} is outside the airspace")
         for ob in obstacles:
             if ob.contains(state0[:3]):
-                raise ScenarioError(source, where, f"{list(ac.position)} is inside obstacle {ob.name!r}")
+                raise ScenarioError(source, where, f"{what} is inside obstacle {ob.name!r}")
     runway = np.array([*config.runway.position, np.radians(config.runway.flight_path_angle_deg),
                        np.radians(config.runway.heading_deg)])
     if not np.all((runway[:3] >= airspace[:, 0]) & (runway[:3] <= airspace[:, 1])):
@@ -401,6 +523,7 @@ def build_scenario(config: ScenarioConfig, source: str = "<scenario>") -> Scenar
         gravity=config.gravity,
         config=config,
         source=source,
+        geo_frame=frame,
     )
 
 

@@ -18,6 +18,9 @@ METRES_PER_NM: float = 1852.0
 METRES_PER_FT: float = 0.3048
 """International foot in metres."""
 
+SECONDS_PER_HOUR: float = 3600.0
+"""A knot is one nautical mile per hour."""
+
 PLANNER_FRAME = "runway"
 
 
@@ -39,6 +42,26 @@ def ft_to_nm(value: float) -> float:
 def nm_to_ft(value: float) -> float:
     """Nautical miles to feet."""
     return value * METRES_PER_NM / METRES_PER_FT
+
+
+def ft_to_m(value):
+    """Feet (scalar or array) to metres."""
+    return value * METRES_PER_FT
+
+
+def m_to_ft(value):
+    """Metres (scalar or array) to feet."""
+    return value / METRES_PER_FT
+
+
+def kt_to_nm_per_s(value):
+    """Knots (scalar or array) to nm/s."""
+    return value / SECONDS_PER_HOUR
+
+
+def nm_per_s_to_kt(value):
+    """nm/s (scalar or array) to knots."""
+    return value * SECONDS_PER_HOUR
 
 
 def nm_per_s_to_m_per_s(value: float) -> float:
