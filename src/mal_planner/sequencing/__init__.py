@@ -1,0 +1,1 @@
+"""Arrival sequencing: the one place where landing order and times are decided."""
