@@ -35,6 +35,13 @@ def first_come_first_served(problem: SequencingProblem) -> SequenceResult:
     t0 = time.perf_counter()
     times: dict[int, float] = {i: float(problem.earliest[i]) for i in range(problem.n)
                                if problem.earliest[i] == problem.latest[i]}
+    S = problem.separation
+    for i in times:
+        for j in times:
+            if i != j and times[i] <= times[j] < times[i] + S[i, j]:
+                raise SequencingInfeasible(
+                    f"{problem.names[i]} and {problem.names[j]}: fixed landing times {times[i]:g} s and {times[j]:g} s "
+                    f"are closer than their separation {S[i, j]:g} s", (problem.names[i], problem.names[j]))
     for i in problem.first_come_order():
         if i in times:
             continue

@@ -105,10 +105,6 @@ def solve_milp(problem: SequencingProblem, options: SequencingOptions) -> Sequen
     n = problem.n
     E, T, S = problem.earliest, problem.target, problem.separation
     L = problem.bounded_latest()
-    bad = [problem.names[i] for i in range(n) if L[i] < E[i]]
-    if bad:
-        raise SequencingInfeasible(f"{bad[0]}: latest landing time {L[problem.names.index(bad[0])]:g} s is before its "
-                                   f"earliest {E[problem.names.index(bad[0])]:g} s", tuple(bad))
     fixed, free = pair_relations(problem, L, options.max_shift)
     # Variables: x (n), earliness a (n), tardiness b (n), one binary per free pair, [makespan z].
     X, A, B, D = 0, n, 2 * n, 3 * n

@@ -59,7 +59,7 @@ def read_airland(path: str | Path) -> SequencingProblem:
     try:
         text = p.read_text(encoding="utf-8")
     except (OSError, UnicodeDecodeError) as exc:
-        raise ORLibraryError(f"{path}: cannot read ({exc})") from None
+        raise ORLibraryError(f"{path}: cannot read: {getattr(exc, 'strerror', None) or exc}") from None
     return parse_airland(text, str(path))
 
 

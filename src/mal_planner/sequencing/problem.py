@@ -67,6 +67,22 @@ class SequencingProblem:
         if sep.shape != (n, n):
             raise ValueError(f"separation: expected a {n} x {n} matrix, got shape {sep.shape}")
         object.__setattr__(self, "separation", sep)
+        if len(set(self.names)) != n:
+            raise ValueError(f"aircraft names must be unique, got {list(self.names)}")
+        for field in ("earliest", "target", "cost_early", "cost_late"):
+            bad = [self.names[i] for i in range(n) if not np.isfinite(getattr(self, field)[i])]
+            if bad:
+                raise ValueError(f"{bad[0]}: {field} must be finite")
+        if np.any(np.isnan(self.latest)) or np.any(np.isnan(sep)) or np.any(sep < 0):
+            raise ValueError("latest landing times and separations must be numbers, separations >= 0")
+        negative = [self.names[i] for i in range(n) if self.cost_early[i] < 0 or self.cost_late[i] < 0]
+        if negative:
+            raise ValueError(f"{negative[0]}: costs per second early and late must be >= 0")
+        for i in range(n):
+            if self.latest[i] < self.earliest[i]:
+                raise SequencingInfeasible(
+                    f"{self.names[i]}: latest landing time {self.latest[i]:g} s is before its earliest "
+                    f"{self.earliest[i]:g} s", (self.names[i],))
 
     @property
     def n(self) -> int:
