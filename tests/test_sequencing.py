@@ -135,3 +135,48 @@ def test_cli_prints_cost_order_times_and_gap(capsys: pytest.CaptureFixture[str])
     assert out[0].startswith("airland1: 10 aircraft  cost 700.00  optimal  gap 0.00 %")
     assert out[1].split()[1:] == ["3", "4", "5", "6", "7", "8", "9", "1", "10", "2"]
     assert out[2].startswith("  times: 3@98 ")
+
+
+def test_wake_tables_distances_and_times() -> None:
+    from mal_planner.sequencing.wake import RECAT_EU_DISTANCE_NM, wake_distance_nm, wake_spacing_s
+
+    radar = 3.0
+    assert wake_distance_nm("icao", "H", "L", radar) == 6.0
+    assert wake_distance_nm("icao", "J", "M", radar) == 7.0
+    assert wake_distance_nm("icao", "M", "H", radar) == radar  # a heavy behind a medium: radar minimum
+    assert wake_distance_nm("icao", "M", "M", 2.5) == 2.5
+    assert [wake_distance_nm("recat-eu", "A", f, radar) for f in "ABCDEF"] == [3, 4, 5, 5, 6, 8]
+    assert [wake_distance_nm("recat-eu", "B", f, 2.5) for f in "ABCDEF"] == [2.5, 3, 4, 4, 5, 7]
+    assert [wake_distance_nm("recat-eu", lead, "F", radar) for lead in "CDEF"] == [6, 5, 4, 3]
+    assert len(RECAT_EU_DISTANCE_NM) == 6 + 5 + 4 + 3
+    # 6 nm at 0.04 nm/s (144 kt) is 150 s; the floor wins when the table asks for less
+    assert wake_spacing_s("icao", "H", "L", 0.04, radar, 90.0) == pytest.approx(150.0)
+    assert wake_spacing_s("icao", "L", "H", 0.04, radar, 90.0) == 90.0
+    assert wake_spacing_s("none", None, None, 0.04, radar, 90.0) == 90.0
+    with pytest.raises(ValueError, match="follower category 'H' is not one of A, B"):
+        wake_distance_nm("recat-eu", "A", "H", radar)
+
+
+def test_scenario_wake_option_checks_the_categories() -> None:
+    import yaml
+
+    from mal_planner.initializer.schedule import landing_spacing
+    from mal_planner.scenario import ScenarioError, parse_scenario
+
+    scenarios = Path(__file__).resolve().parents[1] / "scenarios"
+    data = yaml.safe_load((scenarios / "thesis.yaml").read_text())
+    plain = parse_scenario(data)
+    assert plain.wake == "none"
+    data["separation"] = {**data.get("separation", {}), "wake": "icao"}
+    data["aircraft"][0].pop("wake_category", None)
+    with pytest.raises(ScenarioError, match=r"aircraft\[0\]\.wake_category: separation.wake icao needs one of J, H"):
+        parse_scenario(data)
+    for ac, cat in zip(data["aircraft"], itertools.cycle("HL"), strict=False):
+        ac["wake_category"] = cat
+    scenario = parse_scenario(data)
+    heavy, light = scenario.aircraft[0], scenario.aircraft[1]
+    assert landing_spacing(scenario, heavy, light) == pytest.approx(
+        max(landing_spacing(plain, plain.aircraft[0], plain.aircraft[1]), 6.0 / light.speed))
+    data["separation"]["wake"] = "faa"
+    with pytest.raises(ScenarioError, match="wake"):
+        parse_scenario(data)
