@@ -17,6 +17,7 @@ A time limit returns the best schedule found and HiGHS's proven gap.
 
 from __future__ import annotations
 
+import dataclasses
 import time
 
 import numpy as np
@@ -151,8 +152,17 @@ def solve_milp(problem: SequencingProblem, options: SequencingOptions) -> Sequen
                options={"time_limit": options.time_limit_s, "mip_rel_gap": options.mip_rel_gap, "disp": False})
     elapsed = time.perf_counter() - t0
     if res.x is None:
-        if res.status == 1:  # time limit without any schedule
-            raise TimeoutError(f"no landing sequence found within the time limit of {options.time_limit_s:g} s")
+        if res.status == 1:  # time limit without any schedule: first come, first served if it fits the windows
+            from mal_planner.sequencing.fcfs import first_come_first_served
+
+            try:
+                fallback = first_come_first_served(problem)
+            except SequencingInfeasible:
+                raise TimeoutError(f"no landing sequence found within the time limit of {options.time_limit_s:g} s"
+                                   ) from None
+            return dataclasses.replace(fallback, value=problem.objective_value(fallback.times, options.objective),
+                                       objective=options.objective, status="feasible",
+                                       solve_time_s=time.perf_counter() - t0)
         raise SequencingInfeasible(f"no landing sequence meets every time window ({res.message})")
     x = np.asarray(res.x[X:X + n], float)
     order = tuple(sorted(range(n), key=lambda i: (x[i], E[i], problem.names[i])))
