@@ -25,6 +25,8 @@ from pydantic import BaseModel, ConfigDict, Discriminator, Field, Tag, Validatio
 from mal_planner.dynamics import DYNAMICS_MODELS, ControlLimits, DynamicsModel, make_dynamics
 from mal_planner.geo.frame import GeoFrame
 from mal_planner.obstacles import Gate, Superquadric, wall_with_hole
+from mal_planner.sequencing.wake import WakeTableName
+from mal_planner.sequencing.wake import categories as wake_categories
 from mal_planner.units import ft_to_nm, kt_to_nm_per_s
 
 AXIS_INDEX = {"x": 0, "y": 1, "z": 2}
@@ -78,7 +80,8 @@ class _AircraftCommon(_Strict):
     callsign: str = Field(min_length=1, max_length=16, pattern=r"^[A-Za-z0-9_]+$")
     flight_path_angle_deg: float = Field(ge=-30.0, le=30.0)
     model: str = "point_mass"
-    wake_category: Literal["L", "M", "H", "J"] | None = None
+    wake_category: Literal["L", "M", "H", "J", "A", "B", "C", "D", "E", "F"] | None = None
+    """ICAO (J, H, M, L) or RECAT-EU (A-F) wake-turbulence category; required by ``separation.wake``."""
     landing_time: float | None = Field(None, gt=0.0)
     """Fixed landing time in s (as in the thesis); omitted: taken from the sequencer."""
     limits: LimitsConfig | None = None
@@ -304,6 +307,9 @@ class SeparationConfig(_Strict):
     """Minimum time between successive landings."""
     max_landing_spacing_s: float = Field(30.0, gt=0.0)
     """Largest time between successive landings the sequencer aims for."""
+    wake: WakeTableName = "none"
+    """Wake-turbulence distance minima between successive landings (:mod:`mal_planner.sequencing.wake`):
+    icao (Doc 4444, categories J/H/M/L), recat-eu (A-F) or none (``landing_spacing_s`` for every pair)."""
 
     @model_validator(mode="before")
     @classmethod
@@ -354,6 +360,15 @@ class ScenarioConfig(_Strict):
                                      "(runway: {threshold: {lat, lon, elevation_ft}, course_deg})")
         return self
 
+    @model_validator(mode="after")
+    def _wake_categories(self) -> ScenarioConfig:
+        known = wake_categories(self.separation.wake)
+        for i, ac in enumerate(self.aircraft):
+            if known and ac.wake_category not in known:
+                raise ValueError(f"aircraft[{i}].wake_category: separation.wake {self.separation.wake} needs one of "
+                                 f"{', '.join(known)}, got {ac.wake_category!r}")
+        return self
+
 
 @dataclass(frozen=True)
 class Aircraft:
@@ -400,6 +415,8 @@ class Scenario:
     """The vertical minimum of a cylindrical protected zone (separated: horizontally OR vertically); None: sphere."""
     geo_frame: GeoFrame | None = None
     """Where the local frame lies on the Earth, for a scenario whose runway has a threshold; None: local only."""
+    wake: str = "none"
+    """The wake-turbulence table between successive landings (``separation.wake``)."""
 
     @property
     def separation_radius_nm(self) -> float:
@@ -520,6 +537,7 @@ def build_scenario(config: ScenarioConfig, source: str = "<scenario>") -> Scenar
         vertical_separation_nm=None if (ft := config.separation.vertical_ft) is None else ft_to_nm(ft),
         landing_spacing_s=config.separation.landing_spacing_s,
         max_landing_spacing_s=config.separation.max_landing_spacing_s,
+        wake=config.separation.wake,
         gravity=config.gravity,
         config=config,
         source=source,

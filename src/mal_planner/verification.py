@@ -29,6 +29,7 @@ from scipy.integrate import solve_ivp
 from mal_planner.dynamics import DynamicsModel, stacked_model
 from mal_planner.scales import Scales
 from mal_planner.scenario import Scenario
+from mal_planner.sequencing.wake import wake_distance_nm
 from mal_planner.trajectory import Trajectory
 from mal_planner.units import nm_to_ft
 
@@ -472,10 +473,19 @@ def verify(scenario: Scenario, trajectories: list[Trajectory], tol: Tolerances |
     # Landing-time spacing in landing order.
     order = sorted(checks, key=lambda c: c.landing_time)
     for a, b in itertools.pairwise(order):
-        if b.landing_time - a.landing_time < scenario.landing_spacing_s - tol.landing_time_s:
-            gap = b.landing_time - a.landing_time
+        gap = b.landing_time - a.landing_time
+        if gap < scenario.landing_spacing_s - tol.landing_time_s:
             fail((a.callsign, b.callsign), f"{a.callsign}->{b.callsign}: landings {gap:.2f} s apart "
                                            f"(minimum {scenario.landing_spacing_s:.1f} s)")
+        elif scenario.wake != "none":
+            # The wake table's distance, flown by the follower at its own speed (checked here, not taken from
+            # the schedule's spacing).
+            lead, follow = scenario.aircraft_by_callsign(a.callsign), scenario.aircraft_by_callsign(b.callsign)
+            nm = wake_distance_nm(scenario.wake, lead.wake_category, follow.wake_category, scenario.separation_nm)
+            if gap < nm / follow.speed - tol.landing_time_s:
+                fail((a.callsign, b.callsign), f"{a.callsign}->{b.callsign}: landings {gap:.2f} s apart, the "
+                                               f"{scenario.wake} wake minimum {lead.wake_category}->"
+                                               f"{follow.wake_category} of {nm:g} nm needs {nm / follow.speed:.1f} s")
     pairs = _separation(flown, scenario, tol, fail)
     return VerificationReport(not reasons, reasons, checks, pairs, tol, by_aircraft)
 

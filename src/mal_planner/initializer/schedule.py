@@ -24,6 +24,7 @@ from mal_planner.initializer.approach import FINAL_RADII
 from mal_planner.initializer.timing import reachable_lower_bound
 from mal_planner.scales import Scales
 from mal_planner.scenario import Aircraft, Scenario
+from mal_planner.sequencing.wake import wake_spacing_s
 
 log = logging.getLogger("mal_planner.initializer")
 
@@ -136,10 +137,14 @@ def landing_spacing(scenario: Scenario, leader: Aircraft, follower: Aircraft) ->
     follower is closest when it joins the common approach: the leader must then be S ahead, which takes
     S / V_l + D (1 / V_f - 1 / V_l) between the landings. With one spacing for every pair, a slow aircraft
     behind a fast one through a gate 8.5 nm out needed 103 s, not the 90 s it was given, and no plan existed.
+    With ``separation.wake``, also the wake-turbulence minimum of the pair at the follower's speed
+    (:func:`mal_planner.sequencing.wake.wake_spacing_s`).
     """
     sep, v_l, v_f = scenario.separation_nm, leader.speed, follower.speed
     gap = sep / v_f if v_f >= v_l else sep / v_l + common_approach_nm(scenario) * (1.0 / v_f - 1.0 / v_l)
-    return max(scenario.landing_spacing_s, gap)
+    wake = wake_spacing_s(scenario.wake, leader.wake_category, follower.wake_category, v_f, sep,
+                          scenario.landing_spacing_s)
+    return max(scenario.landing_spacing_s, gap, wake)
 
 
 def make_schedule(scenario: Scenario, earliest: Mapping[str, float], margin_s: float | None = None

@@ -1,0 +1,182 @@
+"""Arrival sequencing: the published optima of the OR-Library landing benchmark, FCFS, position shifting,
+time limits and the one-line errors of infeasible windows and bad files."""
+
+from __future__ import annotations
+
+import itertools
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from mal_planner.sequencing import SequencingInfeasible, SequencingOptions, SequencingProblem, sequence
+from mal_planner.sequencing.cli import main
+from mal_planner.sequencing.orlib import BUNDLED, PUBLISHED_OPTIMA, ORLibraryError, parse_airland, read_airland
+
+OPTIMAL = SequencingOptions(strategy="optimal", time_limit_s=60.0)
+
+
+def brute_force(problem: SequencingProblem) -> float:
+    """The least cost over every order, each timed by an LP: an independent check for small problems."""
+    from scipy.optimize import linprog
+
+    n, best = problem.n, np.inf
+    for order in itertools.permutations(range(n)):
+        # variables x, a, b; x = T - a + b; x_j - x_i >= S_ij for i before j
+        c = np.concatenate([np.zeros(n), problem.cost_early, problem.cost_late])
+        a_eq = np.hstack([np.eye(n), np.eye(n), -np.eye(n)])
+        rows, rhs = [], []
+        for p, q in itertools.combinations(range(n), 2):
+            i, j = order[p], order[q]
+            row = np.zeros(3 * n)
+            row[i], row[j] = 1.0, -1.0
+            rows.append(row)
+            rhs.append(-problem.separation[i, j])
+        bounds = [(problem.earliest[i], problem.latest[i]) for i in range(n)] + [(0, None)] * (2 * n)
+        res = linprog(c, A_ub=np.array(rows), b_ub=rhs, A_eq=a_eq, b_eq=problem.target, bounds=bounds)
+        if res.status == 0:
+            best = min(best, res.fun)
+    return best
+
+
+def random_problem(rng: np.random.Generator, n: int) -> SequencingProblem:
+    target = np.sort(rng.uniform(0, 60 * n, n))
+    earliest = target - rng.uniform(0, 60, n)
+    latest = target + rng.uniform(200, 600, n)
+    category = rng.integers(0, 3, n)
+    table = np.array([[96, 157, 196], [60, 69, 131], [60, 69, 82]])  # s, heavy/medium/light-like
+    separation = table[np.ix_(category, category)].astype(float)
+    return SequencingProblem(tuple(f"A{k}" for k in range(n)), earliest, target, latest,
+                             rng.integers(1, 4, n).astype(float), rng.integers(1, 6, n).astype(float), separation)
+
+
+@pytest.mark.parametrize("name", BUNDLED)
+def test_published_optima(name: str) -> None:
+    problem = read_airland(name)
+    result = sequence(problem, OPTIMAL)
+    assert result.status == "optimal" and result.gap == 0.0
+    assert result.value == pytest.approx(PUBLISHED_OPTIMA[name], abs=1e-4)
+    assert problem.violations(result.times) == []
+    assert [result.times[i] for i in result.order] == sorted(result.times)
+    fcfs = sequence(problem, SequencingOptions(strategy="fcfs"))
+    assert problem.violations(fcfs.times) == [] and fcfs.cost >= result.cost - 1e-6
+
+
+def test_optimal_matches_enumeration_of_every_order() -> None:
+    rng = np.random.default_rng(3)
+    for _ in range(4):
+        problem = random_problem(rng, 5)
+        assert sequence(problem, OPTIMAL).cost == pytest.approx(brute_force(problem), abs=1e-6)
+
+
+def test_position_shifting_keeps_every_aircraft_within_k_places() -> None:
+    problem = read_airland("airland3")
+    first_come = problem.first_come_order()
+    costs = []
+    for k in (0, 1, 2):
+        result = sequence(problem, SequencingOptions(strategy="optimal", max_shift=k, time_limit_s=60.0))
+        assert result.status == "optimal" and problem.violations(result.times) == []
+        shift = [abs(result.order.index(i) - p) for p, i in enumerate(first_come)]
+        assert max(shift) <= k
+        costs.append(result.cost)
+    assert all(a >= b - 1e-6 for a, b in itertools.pairwise([*costs, PUBLISHED_OPTIMA["airland3"]]))
+    assert costs == pytest.approx([1730, 1380, 820])  # airland3: every shift allowed pays off
+
+
+def test_makespan_objective() -> None:
+    problem = read_airland("airland1")
+    result = sequence(problem, SequencingOptions(strategy="optimal", objective="makespan"))
+    assert problem.violations(result.times) == []
+    assert result.value == pytest.approx(max(result.times))
+    # nothing shorter: all must fit after the earliest landing; the optimal cost schedule lands later or equal
+    assert result.value <= max(sequence(problem, OPTIMAL).times) + 1e-6
+
+
+def test_time_limit_returns_best_order_with_its_gap() -> None:
+    problem = read_airland("airland8")
+    result = sequence(problem, SequencingOptions(strategy="optimal", time_limit_s=0.5))
+    assert problem.violations(result.times) == []
+    if result.status == "feasible" and result.gap is not None:  # None: nothing found in time, FCFS returned
+        assert result.gap > 0
+        assert result.bound is not None and result.bound <= PUBLISHED_OPTIMA["airland8"] + 1e-6
+    assert result.cost >= PUBLISHED_OPTIMA["airland8"] - 1e-6
+
+
+def test_infeasible_windows_name_the_aircraft() -> None:
+    sep = np.array([[0.0, 60.0], [60.0, 0.0]])
+    with pytest.raises(SequencingInfeasible, match=r"^B: latest landing time 10 s is before its earliest 20 s$"):
+        SequencingProblem(("A", "B"), [0, 20], [0, 20], [100, 10], [1, 1], [1, 1], sep)
+    squeezed = SequencingProblem(("A", "B"), [0, 0], [0, 0], [10, 10], [1, 1], [1, 1], sep)
+    for strategy in ("fcfs", "optimal"):
+        with pytest.raises(SequencingInfeasible) as err:
+            sequence(squeezed, SequencingOptions(strategy=strategy))
+        assert "\n" not in str(err.value) and ("A" in err.value.names or "B" in err.value.names)
+
+
+def test_fcfs_lands_in_target_order_at_the_earliest_free_slot() -> None:
+    sep = np.full((3, 3), 60.0)
+    problem = SequencingProblem(("C", "A", "B"), [0, 0, 0], [100, 0, 30], [1000] * 3, [1] * 3, [1] * 3, sep)
+    result = sequence(problem, SequencingOptions(strategy="fcfs"))
+    assert result.order_names(problem) == ["A", "B", "C"]
+    assert list(result.times) == [120.0, 0.0, 60.0]
+
+
+def test_bad_files_are_one_line_errors(tmp_path: Path) -> None:
+    with pytest.raises(ORLibraryError, match="2 planes need 18 numbers, found 3"):
+        parse_airland("2 10 5", "x.txt")
+    with pytest.raises(ORLibraryError, match="not an OR-Library landing file"):
+        parse_airland("2 ten", "x.txt")
+    assert main([str(tmp_path / "missing.txt")]) == 2
+
+
+def test_cli_prints_cost_order_times_and_gap(capsys: pytest.CaptureFixture[str]) -> None:
+    assert main(["airland1", "--time-limit", "30"]) == 0
+    out = capsys.readouterr().out.splitlines()
+    assert out[0].startswith("airland1: 10 aircraft  cost 700.00  optimal  gap 0.00 %")
+    assert out[1].split()[1:] == ["3", "4", "5", "6", "7", "8", "9", "1", "10", "2"]
+    assert out[2].startswith("  times: 3@98 ")
+
+
+def test_wake_tables_distances_and_times() -> None:
+    from mal_planner.sequencing.wake import RECAT_EU_DISTANCE_NM, wake_distance_nm, wake_spacing_s
+
+    radar = 3.0
+    assert wake_distance_nm("icao", "H", "L", radar) == 6.0
+    assert wake_distance_nm("icao", "J", "M", radar) == 7.0
+    assert wake_distance_nm("icao", "M", "H", radar) == radar  # a heavy behind a medium: radar minimum
+    assert wake_distance_nm("icao", "M", "M", 2.5) == 2.5
+    assert [wake_distance_nm("recat-eu", "A", f, radar) for f in "ABCDEF"] == [3, 4, 5, 5, 6, 8]
+    assert [wake_distance_nm("recat-eu", "B", f, 2.5) for f in "ABCDEF"] == [2.5, 3, 4, 4, 5, 7]
+    assert [wake_distance_nm("recat-eu", lead, "F", radar) for lead in "CDEF"] == [6, 5, 4, 3]
+    assert len(RECAT_EU_DISTANCE_NM) == 6 + 5 + 4 + 3
+    # 6 nm at 0.04 nm/s (144 kt) is 150 s; the floor wins when the table asks for less
+    assert wake_spacing_s("icao", "H", "L", 0.04, radar, 90.0) == pytest.approx(150.0)
+    assert wake_spacing_s("icao", "L", "H", 0.04, radar, 90.0) == 90.0
+    assert wake_spacing_s("none", None, None, 0.04, radar, 90.0) == 90.0
+    with pytest.raises(ValueError, match="follower category 'H' is not one of A, B"):
+        wake_distance_nm("recat-eu", "A", "H", radar)
+
+
+def test_scenario_wake_option_checks_the_categories() -> None:
+    import yaml
+
+    from mal_planner.initializer.schedule import landing_spacing
+    from mal_planner.scenario import ScenarioError, parse_scenario
+
+    scenarios = Path(__file__).resolve().parents[1] / "scenarios"
+    data = yaml.safe_load((scenarios / "thesis.yaml").read_text())
+    plain = parse_scenario(data)
+    assert plain.wake == "none"
+    data["separation"] = {**data.get("separation", {}), "wake": "icao"}
+    data["aircraft"][0].pop("wake_category", None)
+    with pytest.raises(ScenarioError, match=r"aircraft\[0\]\.wake_category: separation.wake icao needs one of J, H"):
+        parse_scenario(data)
+    for ac, cat in zip(data["aircraft"], itertools.cycle("HL"), strict=False):
+        ac["wake_category"] = cat
+    scenario = parse_scenario(data)
+    heavy, light = scenario.aircraft[0], scenario.aircraft[1]
+    assert landing_spacing(scenario, heavy, light) == pytest.approx(
+        max(landing_spacing(plain, plain.aircraft[0], plain.aircraft[1]), 6.0 / light.speed))
+    data["separation"]["wake"] = "faa"
+    with pytest.raises(ScenarioError, match="wake"):
+        parse_scenario(data)
