@@ -130,6 +130,8 @@ class PlannerNode:
         self._path_pubs: dict[str, Any] = {}
         self._state_subs: dict[str, Any] = {}
         self._published_paths: set[str] = set()
+        self._pub_lock = threading.RLock()  # the worker publishes plans, the executor withdraws lost aircraft
+        self._plan_msg: Any = None  # the last published LandingPlan
         self._setup_ros()
         self.node.forward_logs(logging.getLogger("mal_planner"))  # the planner's log lines on /rosout
         self.node.add_on_set_parameters_callback(self._on_set_parameters)
@@ -257,8 +259,11 @@ class PlannerNode:
         p = self.params
         now = time.monotonic()
         if p.track_timeout_s > 0 and (latest := self.tracks.latest_stamp()) is not None:
-            for cs in self.tracks.drop_older_than(latest - p.track_timeout_s):
+            gone = self.tracks.drop_older_than(latest - p.track_timeout_s)
+            for cs in gone:
                 log.info("aircraft %s not seen for %.0f s: dropped", cs, p.track_timeout_s)
+            if gone:
+                self._withdraw(gone, f"track lost (not seen for {p.track_timeout_s:g} s)")
         if (not self._initial_requested and self._first_rx is not None and now - self._first_rx >= p.settle_time_s
                 and len(self.tracks) >= p.min_aircraft):
             self._initial_requested = True
@@ -386,10 +391,18 @@ class PlannerNode:
         callsigns = [a.callsign for a in inputs.scenario.aircraft]
         plan = self._landing_plan_msg(None, inputs.plan_start, callsigns)
         if job.explicit is None:
-            reason += "; keeping the last plan" if self._current else "; no plan yet"
+            cur = self._current
+            extra: dict[str, Any] = {"failure": reason}
+            if cur is not None:
+                age = inputs.plan_start - cur.plan_start
+                reason += f"; keeping the last plan ({age:.1f} s old)"
+                extra |= {"kept_plan_stamp": f"{cur.plan_start:.3f}", "kept_plan_age_s": f"{age:.1f}",
+                          "kept_plan_aircraft": ",".join(sorted(cur.trajectories))}
+            else:
+                reason += "; no plan yet"
             log.error("%s", reason)
             self.planner = Planner(self.params.plan_options())
-            self._publish_diagnostics(result, f"FAILED: {reason}", failed=True)
+            self._publish_diagnostics(result, f"FAILED: {reason}", failed=True, extra=extra)
         else:
             log.error("what-if plan failed: %s", reason)
         paths = list(self._path_msgs(result, inputs.plan_start).values()) if result is not None else []
@@ -455,16 +468,27 @@ class PlannerNode:
         return out
 
     def _publish(self, result: PlanResult, inputs: PlanInputs, job: PlanJob) -> tuple[Any, list[Any]]:
+        with self._pub_lock:
+            return self._publish_locked(result, inputs, job)
+
+    def _publish_locked(self, result: PlanResult, inputs: PlanInputs, job: PlanJob) -> tuple[Any, list[Any]]:
         plan_start = inputs.plan_start
         paths = self._path_msgs(result, plan_start)
         plan_msg = self._landing_plan_msg(result, plan_start, result.order)
         trajectories = {tr.callsign: tr for tr in result.trajectories()}
+        lost = set(paths) - set(self.tracks.snapshot()) if job.explicit is None else set()
+        if lost:  # tracks that timed out while this plan ran: withdrawn, not published
+            log.info("aircraft %s lost while planning: not published", ", ".join(sorted(lost)))
+            paths = {cs: m for cs, m in paths.items() if cs not in lost}
+            trajectories = {cs: tr for cs, tr in trajectories.items() if cs not in lost}
+            plan_msg.aircraft = [a for a in plan_msg.aircraft if a.callsign not in lost]
         land = result.landing_times()
         considered = frozenset(a.callsign for a in inputs.scenario.aircraft) | frozenset(inputs.left_out)
         self._plans += 1
         self._last_result = result
-        self._current = CurrentPlan(plan_start, trajectories, {cs: plan_start + land[cs] for cs in land},
-                                    considered, job.explicit is None)
+        self._current = CurrentPlan(plan_start, trajectories, {cs: plan_start + land[cs] for cs in trajectories},
+                                    considered - lost, job.explicit is None)
+        self._plan_msg = plan_msg
         for cs, msg in paths.items():
             pub = self._path_pubs.get(cs)
             if pub is None:  # explicit states of an aircraft never seen on radar
@@ -472,14 +496,42 @@ class PlannerNode:
                                                                        QOS_LATCHED)
             pub.publish(msg)
         for cs in self._published_paths - set(paths):  # no longer planned: clear its path
-            header = self.types.msg("std_msgs/msg/Header")(stamp=time_to_msg(self.types, plan_start),
-                                                           frame_id=self.params.frame_id)
-            self._path_pubs[cs].publish(self.types.msg("nav_msgs/msg/Path")(header=header, poses=[]))
+            self._publish_empty_path(cs, plan_start)
         self._published_paths = set(paths)
         self.plan_pub.publish(plan_msg)
         self._publish_markers(list(trajectories.values()), plan_start)
         self._publish_diagnostics(result, self._status_text(result))
         return plan_msg, [paths[cs] for cs in result.order]
+
+    def _publish_empty_path(self, callsign: str, stamp: float) -> None:
+        """An empty nav_msgs/Path on the aircraft's topic: its plan is withdrawn (latched for late joiners)."""
+        header = self.types.msg("std_msgs/msg/Header")(stamp=time_to_msg(self.types, stamp),
+                                                       frame_id=self.params.frame_id)
+        self._path_pubs[callsign].publish(self.types.msg("nav_msgs/msg/Path")(header=header, poses=[]))
+
+    def _withdraw(self, callsigns: list[str], why: str) -> None:
+        """Withdraw the plans of ``callsigns``: an empty Path on each topic, their entries dropped from the
+        latched landing_plan and the markers, a diagnostic saying so. The other aircraft keep their plans."""
+        with self._pub_lock:
+            gone = sorted(set(callsigns) & self._published_paths)
+            cur = self._current
+            if not gone or cur is None:
+                return
+            stamp = self.tracks.latest_stamp() or cur.plan_start
+            for cs in gone:
+                self._publish_empty_path(cs, stamp)
+            self._published_paths -= set(gone)
+            trajectories = {cs: tr for cs, tr in cur.trajectories.items() if cs not in gone}
+            self._current = replace(cur, trajectories=trajectories,
+                                    landing_abs={cs: t for cs, t in cur.landing_abs.items() if cs not in gone},
+                                    considered=cur.considered - set(gone))
+            if self._plan_msg is not None:
+                self._plan_msg.aircraft = [a for a in self._plan_msg.aircraft if a.callsign not in gone]
+                self.plan_pub.publish(self._plan_msg)
+            self._publish_markers(list(trajectories.values()), cur.plan_start)
+            message = f"plan of {', '.join(gone)} withdrawn: {why}"
+            log.warning("%s", message)
+            self._publish_diagnostics(self._last_result, message, extra={"withdrawn": ",".join(gone)})
 
     def _publish_markers(self, trajectories: list[Trajectory], stamp: float) -> None:
         with self._lock:
@@ -487,7 +539,8 @@ class PlannerNode:
         self.marker_pub.publish(marker_array(self.types, obstacles, self.scenario.gates, trajectories, stamp,
                                              self.params.frame_id))
 
-    def _publish_diagnostics(self, result: PlanResult | None, message: str, failed: bool = False) -> None:
+    def _publish_diagnostics(self, result: PlanResult | None, message: str, failed: bool = False,
+                             extra: dict[str, Any] | None = None) -> None:
         T = self.types
 
         def kv(key: str, value: Any) -> Any:
@@ -507,6 +560,7 @@ class PlannerNode:
                        kv("verified", bool(rep and rep.verified)),
                        kv("reasons", "; ".join(rep.reasons) if rep else "")]
             values += [kv(k, f"{v:.3f}") for k, v in result.timings.items()]
+        values += [kv(k, v) for k, v in (extra or {}).items()]
         status = T.msg("diagnostic_msgs/msg/DiagnosticStatus")(
             level=byte_field(T, level), name=f"{self.node.get_name()}: landing plan", message=message,
             hardware_id="mal_planner", values=values)
@@ -525,7 +579,7 @@ class PlannerNode:
             land = result.landing_times()
             status["aircraft"] = [{"order": k, "callsign": cs, "landing_time_s": land[cs],
                                    "verified": _aircraft_verified(result, cs)}
-                                  for k, cs in enumerate(result.order, 1)]
+                                  for k, cs in enumerate(result.order, 1) if cs in cur.trajectories]
         try:
             self.out_dir.mkdir(parents=True, exist_ok=True)
             tmp = self.out_dir / (STATUS_FILE + ".tmp")
