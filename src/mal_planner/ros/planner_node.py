@@ -687,7 +687,8 @@ def setup_logging(level: str = "INFO") -> None:
 
 
 def main(argv: list[str] | None = None) -> int:
-    """Run the node; 0 on SIGINT/SIGTERM, 2 when the scenario cannot be loaded."""
+    """Run the node until SIGINT/SIGTERM (then it ends by that signal, after a clean shutdown: exit -2/-15 as
+    a supervisor sees it); 2 when the scenario cannot be loaded."""
     args = parse_args(argv)
     setup_logging(args.log_level)
     scenario_path = args.scenario or _default_path("scenarios/thesis.yaml") or "scenarios/thesis.yaml"
@@ -703,14 +704,20 @@ def main(argv: list[str] | None = None) -> int:
     planner = PlannerNode(scenario, params_file=params_file, output_dir=args.out, namespace=args.namespace,
                           backend=args.backend)
 
+    stopped_by: list[int] = []
+
     def on_signal(signum: int, _frame: Any) -> None:
         log.info("%s: shutting down", signal.Signals(signum).name)
+        stopped_by.append(signum)
         planner.node.shutdown()
 
     signal.signal(signal.SIGTERM, on_signal)
     signal.signal(signal.SIGINT, on_signal)
     planner.spin()
     logging.shutdown()
+    if stopped_by:  # cleaned up; now end by the signal, so that a supervisor sees how we ended (exit -15)
+        signal.signal(stopped_by[0], signal.SIG_DFL)
+        os.kill(os.getpid(), stopped_by[0])
     if planner._worker.is_alive():  # a solve in C code cannot be interrupted: do not wait for it
         os._exit(0)
     return 0
