@@ -93,7 +93,7 @@ for cs in ("A1", "A2", "A3"):
 print("listening", flush=True)
 while True:
     node.spin_once(0.1)
-    if plans and diags and set(got) == {"A1", "A2", "A3"} and all(
+    if plans and diags and diags[-1].status[0].values[0].value != "0" and set(got) == {"A1", "A2", "A3"} and all(
             msg_to_time(got[a.callsign]) == msg_to_time(plans[-1]) for a in plans[-1].aircraft):
         break
 plan = plans[-1]

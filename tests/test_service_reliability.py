@@ -6,6 +6,7 @@ Real processes on real DDS (loopback), once per backend where the node is involv
 
 from __future__ import annotations
 
+import json
 import time
 from pathlib import Path
 
@@ -47,6 +48,7 @@ while True:
 
 # Listener: prints every landing_plan (callsigns) and every path (callsign, number of poses) with the time.
 LISTENER = """
+import json
 import time
 from mal_planner.ros.transport import QOS_LATCHED, create_node
 node = create_node("listener")
@@ -102,4 +104,100 @@ def test_lost_track_withdraws_its_plan(backend_snippet, snippet, tmp_path: Path)
         delays = {k: v - stopped for k, v in seen.items()}
         print("withdrawal delays after the last A2 message [s]:", delays)
         assert all(d <= timeout_s + 1.0 for d in delays.values()), delays
+        assert planner.proc.poll() is None
+
+
+# Radar status listener: one JSON line per DiagnosticArray with the radar status values.
+RADAR_STATUS = """
+import json
+from mal_planner.ros.transport import QOS_LATCHED, create_node
+node = create_node("radar_status")
+def diag(m):
+    for st in m.status:
+        if st.name.endswith(": radar"):
+            print("RADAR " + json.dumps({kv.key: kv.value for kv in st.values}), flush=True)
+node.create_subscription("diagnostic_msgs/msg/DiagnosticArray", "diagnostics", diag, QOS_LATCHED)
+print("listening", flush=True)
+node.spin()
+"""
+
+# Bad radar input for G1 between good messages, then a burst of 100 new callsigns within one second.
+INTAKE = """
+import math, os, time
+from mal_planner.ros.transport import create_node
+from mal_planner.ros.convert import planner_to_aircraft_state
+node = create_node("radar")
+T = node.types
+pub = node.create_publisher("mal_msgs/msg/AircraftState", "radar/tracks", %(depth)d)
+deadline = time.monotonic() + 20
+while pub.get_subscription_count() < 1 and time.monotonic() < deadline:
+    time.sleep(0.05)
+t0 = time.time() - 5.0
+def g1(t, dy=0.0, heading=-math.pi / 2, x=0.5):
+    return planner_to_aircraft_state(T, "G1", t0 + t, [x, 5.0 - 0.04 * t + dy, 0.2, 0.0, heading], 0.04)
+for k in range(10):
+    pub.publish(g1(0.1 * k))
+    time.sleep(0.01)
+no_frame = g1(1.0)
+no_frame.header.frame_id = ""
+pub.publish(no_frame)
+pub.publish(g1(1.0, heading=1.0e6))
+pub.publish(g1(1.0, dy=-2.5))  # 2.5 nm within 0.1 s
+pub.publish(g1(10.0))  # 9 s ahead of the newest track
+pub.publish(g1(0.9, x=0.6))  # another state for a stamp already held
+pub.publish(planner_to_aircraft_state(T, "Z0", 0.0, [0.5, 5.0, 0.2, 0.0, -1.57], 0.04))  # no time origin of 0
+pub.publish(g1(1.0))  # good again: G1 is not frozen
+print("bad input sent", flush=True)
+while not os.path.exists(%(go)r):
+    time.sleep(0.02)
+start = time.monotonic()
+for k in range(100):
+    x, y = -2.5 + 0.05 * k, 1.0 + 0.04 * k
+    stamp = t0 + 1.0 + time.monotonic() - start  # radar time goes on from G1's last track
+    pub.publish(planner_to_aircraft_state(T, f"B{k:03d}", stamp, [x, y, 0.2, 0.0, -1.57], 0.04))
+print("BURST %%.3f s" %% (time.monotonic() - start), flush=True)
+time.sleep(60)
+"""
+
+
+def _radar_until(listener: Snippet, done, timeout: float) -> dict[str, int]:
+    """The radar status values (as ints) once ``done(values)`` holds; fail with the last one otherwise."""
+    last: dict[str, int] = {}
+    deadline = time.monotonic() + timeout
+    while time.monotonic() < deadline:
+        line = listener.wait_for_line("RADAR ", deadline - time.monotonic())
+        last = {k: int(v) for k, v in json.loads(line[len("RADAR "):]).items()}
+        if done(last):
+            return last
+    pytest.fail(f"radar status never satisfied the test: {last}")
+
+
+def test_radar_intake_gates_and_burst(backend_snippet, snippet, tmp_path: Path) -> None:  # noqa: F811
+    """Implausible radar messages are refused with a reason, counted by reason on the radar status, and do not
+    freeze the aircraft; then 100 new callsigns published within one second are all tracked."""
+    params = tmp_path / "planner.params.yaml"
+    params.write_text(coarse_params("    min_aircraft: 1000\n    figures: false\n"), encoding="utf-8")
+    planner = start_planner(backend_snippet, params)
+    with dump_on_failure(planner=planner):
+        wait_for(planner, "planner ready", 30)
+        listener = snippet(RADAR_STATUS)
+        listener.wait_for_line("listening")
+        go = tmp_path / "go"
+        radar = snippet(INTAKE % {"depth": 100, "go": str(go)})
+        radar.wait_for_line("bad input sent", 30)
+        gates = _radar_until(listener, lambda v: v["accepted"] >= 11 and v["rejected"] >= 6, 30)
+        assert gates["accepted"] == 11 and gates["rejected"] == 6, gates
+        for key in ("frame", "heading", "jump", "future", "conflict", "stamp"):
+            assert gates[f"rejected.{key}"] == 1, (key, gates)
+        assert gates["tracked"] == 1
+        text = "\n".join(planner.output + [planner.lines.get() for _ in range(planner.lines.qsize())])
+        for reason in ("empty frame_id", "heading 1e+06 rad", "jump of 4637 m in 0.10 s", "9.1 s ahead of the newest",
+                       "another state with the same stamp", "stamp 0 is not set"):
+            assert reason in text, reason
+        go.touch()
+        burst = float(radar.wait_for_line("BURST ", 30).split()[1])
+        assert burst < 1.0
+        final = _radar_until(listener, lambda v: v["tracked"] >= 101, 30)
+        print(f"burst of 100 new callsigns in {burst:.3f} s: {final['tracked'] - 1}/100 tracked; status {final}")
+        assert final["tracked"] == 101 and final["rejected"] == 6
         assert planner.proc.poll() is None
