@@ -201,3 +201,41 @@ def test_radar_intake_gates_and_burst(backend_snippet, snippet, tmp_path: Path) 
         print(f"burst of 100 new callsigns in {burst:.3f} s: {final['tracked'] - 1}/100 tracked; status {final}")
         assert final["tracked"] == 101 and final["rejected"] == 6
         assert planner.proc.poll() is None
+
+
+@pytest.mark.parametrize(("name", "value", "why"), [
+    ("degree", 1000, "must be <= 16"), ("segments", 100000, "must be <= 64"), ("output_dt", 1e-9, "must be >= 0.01"),
+    ("settle_time_s", 1e12, "must be <= 600"), ("frame_id", "", "expected a frame name"),
+    ("initializer", "ompl:NoSuchPlanner", "no such planner (known: multi-rrt, ompl:"),
+])
+def test_bad_parameters_are_refused_with_a_reason(name: str, value: object, why: str) -> None:
+    """At start (declare_parameters logs and keeps the default) and on `ros2 param set` (update_params): one line
+    naming the parameter, the value and the range."""
+    from mal_planner.ros.node_params import PARAMETERS, NodeParams, update_params
+
+    defaults = NodeParams(**{k: v[0] for k, v in PARAMETERS.items()})
+    with pytest.raises(ValueError) as err:
+        update_params(defaults, {name: value})
+    text = str(err.value)
+    assert text.startswith(f"parameter {name!r}: ") and why in text and "\n" not in text, text
+    assert update_params(defaults, {name: PARAMETERS[name][0]}) == defaults  # the defaults are in range
+
+
+def test_check_track_gates() -> None:
+    """Issue 22: empty frame, heading range, stamp 0, a jump it cannot fly, a stamp too far ahead of the newest."""
+    import numpy as np
+
+    from mal_planner.ros.state_store import Track, check_track
+
+    def track(stamp: float = 100.0, y: float = 5.0, heading: float = -1.57) -> Track:
+        return Track("A1", stamp, np.array([0.5, y, 0.2, 0.0, heading]), 0.04)
+
+    prev = track(99.9)
+    assert check_track(track(), "runway", "runway", previous=prev, jump_tol_nm=0.25) is None
+    assert check_track(track(), "", "runway").key == "frame"
+    assert check_track(track(heading=1e6), "runway", "runway").key == "heading"
+    assert check_track(track(stamp=0.0), "runway", "runway").key == "stamp"
+    assert check_track(track(y=2.5), "runway", "runway", previous=prev, jump_tol_nm=0.25).key == "jump"
+    assert check_track(track(y=4.8), "runway", "runway", previous=track(90.0), jump_tol_nm=0.25) is None  # 10 s
+    assert check_track(track(stamp=109.0), "runway", "runway", newest=100.0, max_ahead_s=2.0).key == "future"
+    assert check_track(track(stamp=101.0), "runway", "runway", newest=100.0, max_ahead_s=2.0) is None
