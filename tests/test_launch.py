@@ -2,9 +2,12 @@
 
 from __future__ import annotations
 
+import contextlib
 import os
+import signal
 import subprocess
 import sys
+import time
 from pathlib import Path
 
 import pytest
@@ -64,3 +67,112 @@ def test_help_documents_the_network_default() -> None:
     proc = subprocess.run([sys.executable, "-m", "mal_planner.ros.launch", "--help"], capture_output=True, text=True,
                           timeout=60, check=True)
     assert "CYCLONEDDS_URI" in proc.stdout and "loopback" in proc.stdout
+
+
+def _launch(env: dict[str, str], tmp_path: Path, *args: str) -> subprocess.Popen[str]:
+    params = tmp_path / "params.yaml"
+    params.write_text(coarse_params(), encoding="utf-8")
+    return subprocess.Popen([sys.executable, "-u", "-m", "mal_planner.ros.launch", "--params", str(params), *args],
+                            env=env, cwd=tmp_path, stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True)
+
+
+def _wait_lines(proc: subprocess.Popen[str], *texts: str, timeout: float = 60.0) -> list[str]:
+    """Lines of the launcher's output up to the one where every text has been seen."""
+    import select
+
+    lines: list[str] = []
+    missing = set(texts)
+    deadline = time.monotonic() + timeout
+    assert proc.stdout is not None
+    while missing and time.monotonic() < deadline:
+        if not select.select([proc.stdout], [], [], 0.2)[0]:
+            continue
+        line = proc.stdout.readline()
+        if not line:
+            break
+        lines.append(line.rstrip("\n"))
+        missing = {t for t in missing if t not in line}
+    assert not missing, f"missing {missing} in:\n" + "\n".join(lines[-60:])
+    return lines
+
+
+def _children(pid: int) -> list[int]:
+    """Processes whose parent is ``pid`` (from /proc)."""
+    out = []
+    for entry in Path("/proc").iterdir():
+        if entry.name.isdigit():
+            try:
+                stat = (entry / "stat").read_text()
+            except OSError:
+                continue
+            if int(stat.rsplit(")", 1)[1].split()[1]) == pid:
+                out.append(int(entry.name))
+    return out
+
+
+def _alive(pid: int) -> bool:
+    """Running (a zombie waiting for a reaper counts as dead)."""
+    try:
+        return Path(f"/proc/{pid}/stat").read_text().rsplit(")", 1)[1].split()[0] != "Z"
+    except OSError:
+        return False
+
+
+def test_launch_sigkill_leaves_no_orphans(dds_env: dict[str, str], tmp_path: Path) -> None:  # noqa: F811
+    """SIGKILL of mal-launch: 2 s later none of its children (recorder, planner, simulator) is alive, and the
+    recorder, stopped by SIGTERM on its parent's death, left a readable bag."""
+    out = tmp_path / "out"
+    proc = _launch(dds_env, tmp_path, "--simulate", "--out", str(out))
+    try:
+        _wait_lines(proc, "[planner]", "planner ready", "[radar_sim]")
+        children = _children(proc.pid)
+        assert len(children) == 3, children
+        proc.kill()
+        proc.wait()
+        time.sleep(2.0)
+        alive = [pid for pid in children if _alive(pid)]
+    finally:
+        for pid in _children(proc.pid) + (alive if "alive" in locals() else []):
+            with contextlib.suppress(OSError):
+                os.kill(pid, signal.SIGKILL)
+    assert alive == [], f"orphans left running: {alive}"
+    from mal_planner.ros.bagio import open_reader
+
+    open_reader(out / "bag").close()
+
+
+def test_launch_reports_a_child_killed_by_a_signal(dds_env: dict[str, str], tmp_path: Path) -> None:  # noqa: F811
+    """The planner stopped by SIGTERM from outside: the launcher says so (signal by name) and exits non-zero."""
+    proc = _launch(dds_env, tmp_path, "--simulate", "--out", str(tmp_path / "out"))
+    try:
+        _wait_lines(proc, "planner ready", "[radar_sim]")
+        planner = [pid for pid in _children(proc.pid) if "planner_node" in Path(f"/proc/{pid}/cmdline").read_text()]
+        assert len(planner) == 1
+        os.kill(planner[0], signal.SIGTERM)
+        lines = _wait_lines(proc, "launch: FAILED", timeout=30)
+        assert proc.wait(timeout=60) == 1
+    finally:
+        if proc.poll() is None:
+            proc.kill()
+            proc.wait()
+    assert "launch: FAILED: planner killed by SIGTERM (exit -15)" in lines
+
+
+@pytest.mark.parametrize("bad", ["replay", "scenario", "params"])
+def test_launch_bad_input_fails_before_starting(dds_env: dict[str, str], tmp_path: Path, bad: str) -> None:  # noqa: F811
+    """A bad bag, scenario or params file: exit 2, one line naming the file, no child started, no folder made."""
+    garbage = tmp_path / ("garbage.mcap" if bad == "replay" else "garbage.yaml")
+    garbage.write_text("not a bag: [\n", encoding="utf-8")
+    args = ["--replay", str(garbage) if bad == "replay" else str(REPO / "data" / "thesis_radar.mcap")]
+    if bad == "scenario":
+        args += ["--scenario", str(garbage)]
+    out = tmp_path / "out"
+    cmd = [sys.executable, "-m", "mal_planner.ros.launch", *args, "--out", str(out)]
+    if bad == "params":
+        cmd += ["--params", str(garbage)]
+    proc = subprocess.run(cmd, env=dds_env, cwd=tmp_path, capture_output=True, text=True, timeout=60, check=False)
+    assert proc.returncode == 2, proc.stdout + proc.stderr
+    lines = proc.stderr.strip().splitlines()
+    assert len(lines) == 1 and lines[0].startswith(f"launch: --{bad}") and str(garbage) in lines[0], proc.stderr
+    assert "[planner]" not in proc.stdout and "[recorder]" not in proc.stdout
+    assert not out.exists()

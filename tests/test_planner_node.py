@@ -93,7 +93,7 @@ for cs in ("A1", "A2", "A3"):
 print("listening", flush=True)
 while True:
     node.spin_once(0.1)
-    if plans and diags and set(got) == {"A1", "A2", "A3"} and all(
+    if plans and diags and diags[-1].status[0].values[0].value != "0" and set(got) == {"A1", "A2", "A3"} and all(
             msg_to_time(got[a.callsign]) == msg_to_time(plans[-1]) for a in plans[-1].aircraft):
         break
 plan = plans[-1]
@@ -179,6 +179,7 @@ res = trigger.call(Trigger.Request(), timeout_sec=150)
 out["failed"] = [res.success, res.message]
 settle(1.0)
 out["diag_failed"] = [byte_value(diags[-1].status[0].level), diags[-1].status[0].message]
+out["diag_failed_values"] = {kv.key: kv.value for kv in diags[-1].status[0].values}
 out["stamp_after_fail"] = msg_to_time(plans[-1])
 out["set_back"] = set_("max_nlp_iterations", 3000)
 res = trigger.call(Trigger.Request(), timeout_sec=150)
@@ -307,6 +308,10 @@ def test_replay_to_paths_services_and_latched(backend_snippet, snippet, tmp_path
         assert params["after_bad"] == 0.0 and params["set_iter"] == [True, ""]
         assert params["failed"][0] is False and "keeping the last plan" in params["failed"][1]
         assert params["diag_failed"][0] == 2 and params["diag_failed"][1].startswith("FAILED: ")
+        kept = params["diag_failed_values"]  # the kept plan says how old it is and why it was kept
+        assert float(kept["kept_plan_stamp"]) == pytest.approx(params["stamp_before"], abs=1e-3)
+        assert float(kept["kept_plan_age_s"]) >= 0.0 and kept["failure"]
+        assert kept["kept_plan_aircraft"] and set(kept["kept_plan_aircraft"].split(",")) <= {"A1", "A2", "A3"}
         assert params["stamp_after_fail"] == params["stamp_before"]
         assert params["set_back"] == [True, ""]
         assert params["recovered"][0] is True, params

@@ -5,7 +5,11 @@
 
 Each part runs as its own process (``python -m mal_planner.ros.<part>``); their output is prefixed with
 the part's name and also written to ``<out>/logs/<part>.log``. SIGINT/SIGTERM are forwarded to the
-children; the recorder is stopped last so that the bag is complete.
+children; the recorder is stopped last so that the bag is complete. The children die with the launcher even
+when it is killed (SIGKILL): on Linux each gets SIGTERM when its parent dies (PR_SET_PDEATHSIG). A child that
+ends unasked is reported with its exit code, a signal by name (``planner killed by SIGTERM (exit -15)``).
+The inputs (bag, scenario, params file) are checked before any child starts or any folder is made: a bad
+one ends the launcher with exit code 2 and one line on stderr.
 
 With a finite radar source (a bag, or ``--simulate --duration S``) the launcher stops everything once
 the source has ended and the planner has published its plan (it watches ``<out>/planner_status.json``),
@@ -19,6 +23,7 @@ multicast) is written to ``<out>/cyclonedds.xml`` and used, so a run never touch
 from __future__ import annotations
 
 import argparse
+import ctypes
 import json
 import os
 import signal
@@ -38,6 +43,36 @@ READY = {"recorder": "record: recording", "planner": "planner ready"}
 STOP_TIMEOUT_S = 15.0
 
 
+PR_SET_PDEATHSIG = 1  # linux/prctl.h
+
+
+def _die_with_parent(parent: int) -> Any:
+    """A ``preexec_fn``: the child gets SIGTERM when the launcher dies, even by SIGKILL (Linux only)."""
+    if not sys.platform.startswith("linux"):
+        return None
+    libc = ctypes.CDLL(None, use_errno=True)
+
+    def preexec() -> None:
+        libc.prctl(PR_SET_PDEATHSIG, signal.SIGTERM, 0, 0, 0)
+        if os.getppid() != parent:  # the launcher died before prctl: no signal would come
+            os.kill(os.getpid(), signal.SIGTERM)
+
+    return preexec
+
+
+def exit_text(code: int | None) -> str:
+    """``exited with code 1``, ``killed by SIGTERM (exit -15)``: how a child ended, as launch reports it."""
+    if code is None:
+        return "is still running"
+    if code < 0:
+        try:
+            name = signal.Signals(-code).name
+        except ValueError:
+            name = f"signal {-code}"
+        return f"killed by {name} (exit {code})"
+    return f"exited with code {code}"
+
+
 class Child:
     """One child process; its merged output is echoed with a prefix and saved to a log file."""
 
@@ -47,7 +82,8 @@ class Child:
         self._ready_text = READY.get(name)
         self._log: TextIO = (log_dir / f"{name}.log").open("w", encoding="utf-8")
         self.proc = subprocess.Popen([sys.executable, "-u", "-m", *args], env=env, stdout=subprocess.PIPE,
-                                     stderr=subprocess.STDOUT, text=True, start_new_session=True)
+                                     stderr=subprocess.STDOUT, text=True, start_new_session=True,
+                                     preexec_fn=_die_with_parent(os.getpid()))
         self._pump = threading.Thread(target=self._read, daemon=True)
         self._pump.start()
         if self._ready_text is None:
@@ -157,22 +193,48 @@ class Launcher:
                 return False
         return child.running()
 
+    def check_inputs(self, scenario: str, params: str, bag: Path | None) -> str | None:
+        """None when the inputs are usable, else a one-line reason (checked before anything starts)."""
+        a = self.args
+        if bag is not None and bag.exists():
+            return f"{bag} exists already; remove it or choose another --record"
+        if a.replay is not None:
+            from mal_planner.ros.bagio import BagError, open_reader
+
+            try:
+                open_reader(a.replay).close()
+            except BagError as exc:
+                return f"--replay: {exc}"
+        from mal_planner.scenario import ScenarioError, load_scenario
+
+        try:
+            load_scenario(scenario)
+        except ScenarioError as exc:
+            return f"--scenario: {' '.join(str(exc).split())}"
+        from mal_planner.ros.transport import load_params_file
+
+        try:
+            load_params_file(params, "planner")
+        except Exception as exc:  # OSError, YAML errors
+            return f"--params: cannot read {params}: {' '.join(str(exc).split())}"
+        return None
+
     def run(self) -> int:
         a = self.args
         scenario = a.scenario or _default("scenarios/thesis.yaml")
         params = a.params or _default("config/planner.params.yaml")
+        bag = None if a.no_record else Path(a.record) if a.record else self.out / "bag"
+        if (error := self.check_inputs(scenario, params, bag)) is not None:
+            print(f"launch: {error}", file=sys.stderr, flush=True)
+            return 2
         self.out.mkdir(parents=True, exist_ok=True)
         (self.out / "logs").mkdir(exist_ok=True)
         (self.out / STATUS_FILE).unlink(missing_ok=True)
         env = child_env(self.out)
-        bag = None if a.no_record else Path(a.record) if a.record else self.out / "bag"
         finite = not a.keep_running and (a.replay is not None or a.duration > 0)
         print(f"launch: scenario {scenario}, params {params}, out {self.out}, record {bag or 'off'}, "
               f"CYCLONEDDS_URI {env['CYCLONEDDS_URI']}, ROS_DOMAIN_ID {env.get('ROS_DOMAIN_ID', '0')}", flush=True)
         if bag is not None:
-            if bag.exists():
-                print(f"launch: {bag} exists already; remove it or choose another --record", flush=True)
-                return 2
             rec = self._start("recorder", ["mal_planner.ros.record", str(bag), "--scenario", scenario], env)
             if not self._wait_ready(rec):
                 return self._shutdown(failed="the recorder did not start")
@@ -195,10 +257,10 @@ class Launcher:
         while not self.stop_requested.wait(0.2):
             for name, child in self.children.items():
                 if child is not source and not child.running():
-                    return self._shutdown(failed=f"{name} exited with code {child.proc.returncode}")
+                    return self._shutdown(failed=f"{name} {exit_text(child.proc.returncode)}")
             if source_done_at is None and not source.running():
                 if source.proc.returncode != 0:
-                    return self._shutdown(failed=f"{source.name} exited with code {source.proc.returncode}")
+                    return self._shutdown(failed=f"{source.name} {exit_text(source.proc.returncode)}")
                 source_done_at = time.monotonic()
                 print(f"launch: {source.name} finished", flush=True)
             if not finite or source_done_at is None:
@@ -226,7 +288,7 @@ class Launcher:
                                                        else signal.SIGTERM)
         bad = {n: c for n, c in codes.items() if c not in (0, -signal.SIGINT, -signal.SIGTERM)}
         if bad:
-            print("launch: children failed: " + ", ".join(f"{n} (exit {c})" for n, c in bad.items()), flush=True)
+            print("launch: children failed: " + ", ".join(f"{n} {exit_text(c)}" for n, c in bad.items()), flush=True)
         if status and status.get("aircraft"):
             print(f"launch: {status['plans']} plan(s); last plan:\n{summary_table(status)}", flush=True)
             outputs = sorted(p.name for p in self.out.iterdir() if p.suffix in (".json", ".png", ".md"))

@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import logging
 import math
+import re
 from collections.abc import Callable, Mapping
 from dataclasses import dataclass, fields
 from pathlib import Path
@@ -22,22 +23,28 @@ def _bool(v: Any) -> bool:
     raise ValueError("expected true or false")
 
 
-def _int(lo: int) -> Check:
+def _int(lo: int, hi: int | None = None) -> Check:
     def check(v: Any) -> int:
         if isinstance(v, bool) or not isinstance(v, (int, float)) or int(v) != v:
             raise ValueError("expected an integer")
         if v < lo:
             raise ValueError(f"must be >= {lo}")
+        if hi is not None and v > hi:
+            raise ValueError(f"must be <= {hi}")
         return int(v)
     return check
 
 
-def _float(positive: bool = False) -> Check:
+def _float(positive: bool = False, lo: float | None = None, hi: float | None = None) -> Check:
     def check(v: Any) -> float:
         if isinstance(v, bool) or not isinstance(v, (int, float)) or not math.isfinite(v):
             raise ValueError("expected a finite number")
         if v < 0 or (positive and v == 0):
             raise ValueError("must be > 0" if positive else "must be >= 0")
+        if lo is not None and v < lo:
+            raise ValueError(f"must be >= {lo:g}")
+        if hi is not None and v > hi:
+            raise ValueError(f"must be <= {hi:g}")
         return float(v)
     return check
 
@@ -45,6 +52,16 @@ def _float(positive: bool = False) -> Check:
 def _str(v: Any) -> str:
     if not isinstance(v, str):
         raise ValueError("expected a string")
+    return v
+
+
+FRAME_RE = re.compile(r"^[A-Za-z_][A-Za-z0-9_/]*$")
+
+
+def _frame(v: Any) -> str:
+    """A TF frame name: not empty, letters, digits, '_' and '/' (REP 103/105)."""
+    if not isinstance(v, str) or not FRAME_RE.match(v):
+        raise ValueError("expected a frame name (letters, digits, '_', '/'; not empty)")
     return v
 
 
@@ -66,14 +83,28 @@ def _figures(v: Any) -> str:
 
 
 def _initializer(v: Any) -> str:
-    if v == "multi-rrt" or (isinstance(v, str) and v.startswith("ompl:") and len(v) > 5):
-        return str(v)
-    raise ValueError("expected 'multi-rrt' or 'ompl:<planner>'")
+    """A path planner that exists in this installation ('multi-rrt' or an OMPL geometric planner)."""
+    if not (v == "multi-rrt" or (isinstance(v, str) and v.startswith("ompl:") and len(v) > 5)):
+        raise ValueError("expected 'multi-rrt' or 'ompl:<planner>'")
+    from mal_planner.initializer.planners import known_specs
+
+    if v not in (known := known_specs()):
+        raise ValueError(f"no such planner (known: {', '.join(known)})")
+    return str(v)
 
 
 def _seed(v: Any) -> int:
     return _int(-1)(v)
 
+
+MAX_SEGMENTS = 64
+"""Initial mesh segments per phase: refinement adds more where needed; beyond this the NLP only grows."""
+MAX_DEGREE = 16
+"""Collocation degree per segment: higher degrees make dense, slow segments; refinement splits them instead."""
+MIN_OUTPUT_DT_S, MAX_OUTPUT_DT_S = 0.01, 60.0
+"""Published path sampling: no controller follows a path finer than 100 Hz; a minute between samples is no path."""
+MAX_SETTLE_TIME_S = 600.0
+"""Waiting longer than ten minutes of radar for a first plan is a typo, not a setting."""
 
 #: name -> (default, check, description)
 PARAMETERS: dict[str, tuple[Any, Check, str]] = {
@@ -85,20 +116,21 @@ PARAMETERS: dict[str, tuple[Any, Check, str]] = {
     "fixed_landing_times": (True, _bool, "fix the landing times (scenario's, else the sequencer's + margin)"),
     "mesh_tol": (1e-5, _float(positive=True), "mesh refinement tolerance"),
     "refine": (True, _bool, "hp mesh refinement"),
-    "segments": (4, _int(1), "mesh segments per phase"),
-    "degree": (6, _int(2), "collocation degree per segment"),
+    "segments": (4, _int(1, MAX_SEGMENTS), "mesh segments per phase"),
+    "degree": (6, _int(2, MAX_DEGREE), "collocation degree per segment"),
     "nlp_tol": (1e-8, _float(positive=True), "IPOPT tolerance"),
     "max_nlp_iterations": (3000, _int(1), "IPOPT iteration limit"),
     "max_mesh_iterations": (8, _int(1), "mesh refinement iteration limit"),
-    "output_dt": (0.25, _float(positive=True), "sample step of the published paths [s]"),
+    "output_dt": (0.25, _float(lo=MIN_OUTPUT_DT_S, hi=MAX_OUTPUT_DT_S), "sample step of the published paths [s]"),
     "replan_period_s": (0.0, _float(), "periodic replanning [s], 0 = off"),
     "deviation_threshold_m": (926.0, _float(), "replan when radar deviates more from the plan [m], 0 = off"),
     "min_replan_interval_s": (5.0, _float(), "no deviation/periodic replan sooner after a plan [s]"),
     "min_aircraft": (1, _int(1), "plan only with at least this many tracked aircraft"),
-    "settle_time_s": (2.0, _float(), "wait after the first radar message before the first plan [s]"),
+    "settle_time_s": (2.0, _float(hi=MAX_SETTLE_TIME_S),
+                      "wait after the first radar message before the first plan [s]"),
     "track_timeout_s": (30.0, _float(), "forget aircraft not seen for this long (radar time) [s], 0 = never"),
     "radar_qos": ("default", _choice("default", "sensor_data"), "QoS of the radar subscriptions"),
-    "frame_id": ("runway", _str, "frame of radar input and published paths"),
+    "frame_id": ("runway", _frame, "frame of radar input and published paths"),
     "output_dir": ("", _str, "write plan.json, report.md and figures here after each plan ('' = off)"),
     "figures": ("png", _figures, "figures rendered into output_dir in a background process after each plan: "
                 "none, png, html (interactive plan.html) or all (true/false: png/none)"),

@@ -19,7 +19,7 @@ import signal
 import sys
 import threading
 import time
-from collections import deque
+from collections import Counter, deque
 from concurrent.futures import Future
 from dataclasses import dataclass, field, replace
 from pathlib import Path
@@ -33,8 +33,8 @@ from mal_planner.ros.convert import aircraft_state_to_planner, byte_field, path_
 from mal_planner.ros.markers import marker_array
 from mal_planner.ros.node_params import NodeParams, declare_parameters, describe, read_params_file, update_params
 from mal_planner.ros.plan_scenario import NoFlyZoneError, PlanInputs, apply_no_fly_zone, build_plan_scenario
-from mal_planner.ros.state_store import CALLSIGN_RE, Track, TrackStore, check_track
-from mal_planner.ros.transport import QOS_DEFAULT, QOS_LATCHED, QOS_SENSOR_DATA, create_node
+from mal_planner.ros.state_store import AHEAD_TOLERANCE_S, CALLSIGN_RE, Track, TrackStore, check_track
+from mal_planner.ros.transport import QOS_DEFAULT, QOS_LATCHED, QoSProfile, create_node
 from mal_planner.scenario import Scenario, ScenarioError, load_scenario
 from mal_planner.trajectory import Trajectory
 from mal_planner.units import METRES_PER_NM
@@ -43,6 +43,11 @@ NODE_NAME = "planner"
 STATE_TYPE = "mal_msgs/msg/AircraftState"
 STATUS_FILE = "planner_status.json"
 TICK_S = 0.2
+RADAR_STATUS_PERIOD_S = 1.0  # the radar status on diagnostics, as diagnostic_updater's default rate
+RADAR_DEPTH = 1000
+"""History of the radar subscriptions: a burst of new callsigns waits here while their topics are made."""
+JUMP_CONFIRM = 3
+"""Consistent jumps in a row after which a track is taken as re-initialised (else it would stay frozen)."""
 REPO = Path(__file__).resolve().parents[3]
 # mal_msgs/AircraftPlan status constants and diagnostic_msgs/DiagnosticStatus levels
 OPTIMAL, INITIAL_GUESS, FAILED = 0, 1, 2
@@ -130,6 +135,16 @@ class PlannerNode:
         self._path_pubs: dict[str, Any] = {}
         self._state_subs: dict[str, Any] = {}
         self._published_paths: set[str] = set()
+        self._new_aircraft: list[str] = []  # seen in a radar callback, their topics are made in the tick
+        self._radar: Counter[str] = Counter()  # intake counts for the radar status
+        self._rejected_reported = 0
+        self._radar_status_at = -math.inf
+        self._newest_rx = time.monotonic()  # when the newest radar stamp arrived
+        self._jumps: dict[str, tuple[Track, int]] = {}  # a refused jump and how many agree with it
+        self._diag_lock = threading.Lock()
+        self._plan_status: Any = None
+        self._pub_lock = threading.RLock()  # the worker publishes plans, the executor withdraws lost aircraft
+        self._plan_msg: Any = None  # the last published LandingPlan
         self._setup_ros()
         self.node.forward_logs(logging.getLogger("mal_planner"))  # the planner's log lines on /rosout
         self.node.add_on_set_parameters_callback(self._on_set_parameters)
@@ -140,7 +155,8 @@ class PlannerNode:
     # -- set-up -------------------------------------------------------------------------------------
     def _setup_ros(self) -> None:
         node = self.node
-        self.radar_qos = QOS_SENSOR_DATA if self.params.radar_qos == "sensor_data" else QOS_DEFAULT
+        # Deep history: a burst of messages waits while the executor is busy (e.g. making new aircraft's topics).
+        self.radar_qos = QoSProfile(depth=RADAR_DEPTH, reliable=self.params.radar_qos != "sensor_data")
         self.plan_pub = node.create_publisher("mal_msgs/msg/LandingPlan", "landing_plan", QOS_LATCHED)
         self.marker_pub = node.create_publisher("visualization_msgs/msg/MarkerArray", "planner/markers", QOS_LATCHED)
         self.diag_pub = node.create_publisher("diagnostic_msgs/msg/DiagnosticArray", "diagnostics", QOS_LATCHED)
@@ -149,6 +165,7 @@ class PlannerNode:
         node.create_subscription(STATE_TYPE, "radar/tracks", lambda m: self._on_state(m, "radar/tracks"),
                                  self.radar_qos)
         node.create_subscription("mal_msgs/msg/NoFlyZone", "airspace/no_fly_zones", self._on_no_fly_zone, QOS_DEFAULT)
+        self._plan_status = self._diag_status(None, "no plan yet", values={"plans": 0, "status": "NONE"})
         node.create_timer(TICK_S, self._tick)
         # Reentrant: a service call waits for its plan without holding up the radar callbacks.
         node.create_service("std_srvs/srv/Trigger", "plan", self._srv_trigger, reentrant=True)
@@ -189,37 +206,70 @@ class PlannerNode:
 
     # -- executor-thread callbacks (cheap) ----------------------------------------------------------
     def _bad(self, key: str, text: str) -> None:
-        """Log bad input once per key and 5 s (a 10 Hz stream of bad data gives one line, not a flood)."""
+        """Log bad input once per key (topic, callsign, reason) and 5 s (a 10 Hz stream of bad data gives one
+        line, not a flood; every refusal is counted on the radar status)."""
         now = time.monotonic()
         if now - self._bad_inputs.get(key, -math.inf) >= 5.0:
             self._bad_inputs[key] = now
             log.error("%s", text)
 
+    def _reject(self, key: str, log_key: str, text: str) -> None:
+        self._radar["rejected"] += 1
+        self._radar[f"rejected.{key}"] += 1
+        self._bad(log_key, text)
+
     def _on_state(self, msg: Any, topic: str) -> None:
+        self._radar["received"] += 1
         try:
             callsign, stamp, state, speed, wake = aircraft_state_to_planner(msg)
             track = Track(callsign, stamp, state, speed, wake)
+            newest = self.tracks.latest_stamp()
+            ahead = None if newest is None else AHEAD_TOLERANCE_S + time.monotonic() - self._newest_rx
             reason = check_track(track, str(msg.header.frame_id), self.params.frame_id, self.scenario.airspace,
-                                 expected_speed=self._scenario_speed(callsign), newest=self.tracks.latest_stamp(),
-                                 timeout_s=self.params.track_timeout_s, now=time.time())
+                                 expected_speed=self._scenario_speed(callsign), newest=newest,
+                                 timeout_s=self.params.track_timeout_s, now=time.time(), max_ahead_s=ahead,
+                                 previous=self.tracks.get(callsign), jump_tol_nm=self.scenario.separation_nm)
         except Exception as exc:  # malformed message
-            self._bad(topic, f"bad AircraftState on {topic}: {exc} (ignored)")
+            self._reject("malformed", topic, f"bad AircraftState on {topic}: {exc} (ignored)")
             return
+        if reason is not None and reason.key == "jump" and self._jump_confirmed(track):
+            log.warning("track of %s re-initialised: %d jumps in a row agree (%s)", callsign, JUMP_CONFIRM, reason)
+            reason = None
         if reason is not None:
-            self._bad(f"{topic}:{callsign}", f"bad AircraftState on {topic} for {callsign!r} at t={stamp:.3f}: "
-                      f"{reason} (ignored)")
+            self._reject(reason.key, f"{topic}:{callsign}:{reason.key}",
+                         f"bad AircraftState on {topic} for {callsign!r} at t={stamp:.3f}: {reason} (ignored)")
             return
-        if not self.tracks.update(track):
+        self._jumps.pop(callsign, None)
+        stored = self.tracks.update(track)
+        if stored == "conflict":
+            self._reject("conflict", f"{topic}:{callsign}:conflict", f"bad AircraftState on {topic} for "
+                         f"{callsign!r} at t={stamp:.3f}: another state with the same stamp (ignored)")
+        if stored != "stored":
+            self._radar[stored] += 1  # older, duplicate (the same track on two topics) or conflict
             return
-        if callsign not in self._state_subs:
+        self._radar["accepted"] += 1
+        if newest is None or stamp > newest:
+            self._newest_rx = time.monotonic()
+        if callsign not in self._state_subs and callsign not in self._new_aircraft:
             log.info("new aircraft %s on %s (wake %s)", callsign, topic, wake or "?")
-            self._ensure_aircraft(callsign)
+            self._new_aircraft.append(callsign)  # its topics are made in the tick, not in this callback
         if self._first_rx is None:
             self._first_rx = time.monotonic()
             self._epoch = stamp
             log.info("first radar message (%s, t=%.3f); first plan in %.1f s", callsign, stamp,
                      self.params.settle_time_s)
         self._check_deviation(track)
+
+    def _jump_confirmed(self, track: Track) -> bool:
+        """A refused jump: True once ``JUMP_CONFIRM`` refused tracks in a row agree with each other (the track
+        was re-initialised, not a glitch), so that a bad jump never freezes an aircraft for good."""
+        pending = self._jumps.get(track.callsign)
+        agree = pending is not None and check_track(
+            track, self.params.frame_id, self.params.frame_id, previous=pending[0],
+            jump_tol_nm=self.scenario.separation_nm) is None
+        count = pending[1] + 1 if agree and pending is not None else 1
+        self._jumps[track.callsign] = (track, count)
+        return count >= JUMP_CONFIRM
 
     def _check_deviation(self, track: Track) -> None:
         cur = self._current
@@ -256,9 +306,18 @@ class PlannerNode:
     def _tick(self) -> None:
         p = self.params
         now = time.monotonic()
+        while self._new_aircraft:
+            self._ensure_aircraft(self._new_aircraft.pop(0))
+        if now - self._radar_status_at >= RADAR_STATUS_PERIOD_S:
+            self._radar_status_at = now
+            self._publish_diag_array()
         if p.track_timeout_s > 0 and (latest := self.tracks.latest_stamp()) is not None:
-            for cs in self.tracks.drop_older_than(latest - p.track_timeout_s):
+            gone = self.tracks.drop_older_than(latest - p.track_timeout_s)
+            for cs in gone:
                 log.info("aircraft %s not seen for %.0f s: dropped", cs, p.track_timeout_s)
+                self._radar["lost"] += 1
+            if gone:
+                self._withdraw(gone, f"track lost (not seen for {p.track_timeout_s:g} s)")
         if (not self._initial_requested and self._first_rx is not None and now - self._first_rx >= p.settle_time_s
                 and len(self.tracks) >= p.min_aircraft):
             self._initial_requested = True
@@ -386,10 +445,18 @@ class PlannerNode:
         callsigns = [a.callsign for a in inputs.scenario.aircraft]
         plan = self._landing_plan_msg(None, inputs.plan_start, callsigns)
         if job.explicit is None:
-            reason += "; keeping the last plan" if self._current else "; no plan yet"
+            cur = self._current
+            extra: dict[str, Any] = {"failure": reason}
+            if cur is not None:
+                age = inputs.plan_start - cur.plan_start
+                reason += f"; keeping the last plan ({age:.1f} s old)"
+                extra |= {"kept_plan_stamp": f"{cur.plan_start:.3f}", "kept_plan_age_s": f"{age:.1f}",
+                          "kept_plan_aircraft": ",".join(sorted(cur.trajectories))}
+            else:
+                reason += "; no plan yet"
             log.error("%s", reason)
             self.planner = Planner(self.params.plan_options())
-            self._publish_diagnostics(result, f"FAILED: {reason}", failed=True)
+            self._publish_diagnostics(result, f"FAILED: {reason}", failed=True, extra=extra)
         else:
             log.error("what-if plan failed: %s", reason)
         paths = list(self._path_msgs(result, inputs.plan_start).values()) if result is not None else []
@@ -455,16 +522,27 @@ class PlannerNode:
         return out
 
     def _publish(self, result: PlanResult, inputs: PlanInputs, job: PlanJob) -> tuple[Any, list[Any]]:
+        with self._pub_lock:
+            return self._publish_locked(result, inputs, job)
+
+    def _publish_locked(self, result: PlanResult, inputs: PlanInputs, job: PlanJob) -> tuple[Any, list[Any]]:
         plan_start = inputs.plan_start
         paths = self._path_msgs(result, plan_start)
         plan_msg = self._landing_plan_msg(result, plan_start, result.order)
         trajectories = {tr.callsign: tr for tr in result.trajectories()}
+        lost = set(paths) - set(self.tracks.snapshot()) if job.explicit is None else set()
+        if lost:  # tracks that timed out while this plan ran: withdrawn, not published
+            log.info("aircraft %s lost while planning: not published", ", ".join(sorted(lost)))
+            paths = {cs: m for cs, m in paths.items() if cs not in lost}
+            trajectories = {cs: tr for cs, tr in trajectories.items() if cs not in lost}
+            plan_msg.aircraft = [a for a in plan_msg.aircraft if a.callsign not in lost]
         land = result.landing_times()
         considered = frozenset(a.callsign for a in inputs.scenario.aircraft) | frozenset(inputs.left_out)
         self._plans += 1
         self._last_result = result
-        self._current = CurrentPlan(plan_start, trajectories, {cs: plan_start + land[cs] for cs in land},
-                                    considered, job.explicit is None)
+        self._current = CurrentPlan(plan_start, trajectories, {cs: plan_start + land[cs] for cs in trajectories},
+                                    considered - lost, job.explicit is None)
+        self._plan_msg = plan_msg
         for cs, msg in paths.items():
             pub = self._path_pubs.get(cs)
             if pub is None:  # explicit states of an aircraft never seen on radar
@@ -472,14 +550,42 @@ class PlannerNode:
                                                                        QOS_LATCHED)
             pub.publish(msg)
         for cs in self._published_paths - set(paths):  # no longer planned: clear its path
-            header = self.types.msg("std_msgs/msg/Header")(stamp=time_to_msg(self.types, plan_start),
-                                                           frame_id=self.params.frame_id)
-            self._path_pubs[cs].publish(self.types.msg("nav_msgs/msg/Path")(header=header, poses=[]))
+            self._publish_empty_path(cs, plan_start)
         self._published_paths = set(paths)
         self.plan_pub.publish(plan_msg)
         self._publish_markers(list(trajectories.values()), plan_start)
         self._publish_diagnostics(result, self._status_text(result))
         return plan_msg, [paths[cs] for cs in result.order]
+
+    def _publish_empty_path(self, callsign: str, stamp: float) -> None:
+        """An empty nav_msgs/Path on the aircraft's topic: its plan is withdrawn (latched for late joiners)."""
+        header = self.types.msg("std_msgs/msg/Header")(stamp=time_to_msg(self.types, stamp),
+                                                       frame_id=self.params.frame_id)
+        self._path_pubs[callsign].publish(self.types.msg("nav_msgs/msg/Path")(header=header, poses=[]))
+
+    def _withdraw(self, callsigns: list[str], why: str) -> None:
+        """Withdraw the plans of ``callsigns``: an empty Path on each topic, their entries dropped from the
+        latched landing_plan and the markers, a diagnostic saying so. The other aircraft keep their plans."""
+        with self._pub_lock:
+            gone = sorted(set(callsigns) & self._published_paths)
+            cur = self._current
+            if not gone or cur is None:
+                return
+            stamp = self.tracks.latest_stamp() or cur.plan_start
+            for cs in gone:
+                self._publish_empty_path(cs, stamp)
+            self._published_paths -= set(gone)
+            trajectories = {cs: tr for cs, tr in cur.trajectories.items() if cs not in gone}
+            self._current = replace(cur, trajectories=trajectories,
+                                    landing_abs={cs: t for cs, t in cur.landing_abs.items() if cs not in gone},
+                                    considered=cur.considered - set(gone))
+            if self._plan_msg is not None:
+                self._plan_msg.aircraft = [a for a in self._plan_msg.aircraft if a.callsign not in gone]
+                self.plan_pub.publish(self._plan_msg)
+            self._publish_markers(list(trajectories.values()), cur.plan_start)
+            message = f"plan of {', '.join(gone)} withdrawn: {why}"
+            log.warning("%s", message)
+            self._publish_diagnostics(self._last_result, message, extra={"withdrawn": ",".join(gone)})
 
     def _publish_markers(self, trajectories: list[Trajectory], stamp: float) -> None:
         with self._lock:
@@ -487,31 +593,54 @@ class PlannerNode:
         self.marker_pub.publish(marker_array(self.types, obstacles, self.scenario.gates, trajectories, stamp,
                                              self.params.frame_id))
 
-    def _publish_diagnostics(self, result: PlanResult | None, message: str, failed: bool = False) -> None:
+    def _diag_status(self, level: int | None, message: str, values: dict[str, Any], name: str = "landing plan"
+                     ) -> Any:
         T = self.types
+        kvs = [T.msg("diagnostic_msgs/msg/KeyValue")(key=k, value=str(v)) for k, v in values.items()]
+        return T.msg("diagnostic_msgs/msg/DiagnosticStatus")(
+            level=byte_field(T, DIAG_OK if level is None else level), name=f"{self.node.get_name()}: {name}",
+            message=message, hardware_id="mal_planner", values=kvs)
 
-        def kv(key: str, value: Any) -> Any:
-            return T.msg("diagnostic_msgs/msg/KeyValue")(key=key, value=str(value))
-
-        values = [kv("plans", self._plans), kv("status", "FAILED" if failed else "OK")]
-        if result is None or failed:
-            level = DIAG_ERROR
+    def _publish_diagnostics(self, result: PlanResult | None, message: str, failed: bool = False,
+                             extra: dict[str, Any] | None = None) -> None:
+        """The plan's status (kept: the 1 Hz diagnostics repeat it beside the radar status)."""
+        values: dict[str, Any] = {"plans": self._plans, "status": "FAILED" if failed else "OK"}
+        level = DIAG_ERROR
         if result is not None:
             lr, rep = result.landing, result.verification
             if not failed:
                 level = DIAG_OK if result.optimized and rep is not None and rep.verified else DIAG_WARN
-            values += [kv("order", ",".join(result.order)),
-                       kv("solver_status", lr.status if lr else "not run"),
-                       kv("solve_time_s", f"{lr.solve_time:.3f}" if lr else "nan"),
-                       kv("nlp_iterations", lr.nlp_iterations if lr else 0),
-                       kv("verified", bool(rep and rep.verified)),
-                       kv("reasons", "; ".join(rep.reasons) if rep else "")]
-            values += [kv(k, f"{v:.3f}") for k, v in result.timings.items()]
-        status = T.msg("diagnostic_msgs/msg/DiagnosticStatus")(
-            level=byte_field(T, level), name=f"{self.node.get_name()}: landing plan", message=message,
-            hardware_id="mal_planner", values=values)
-        header = T.msg("std_msgs/msg/Header")(stamp=time_to_msg(T, time.time()), frame_id="")
-        self.diag_pub.publish(T.msg("diagnostic_msgs/msg/DiagnosticArray")(header=header, status=[status]))
+            values |= {"order": ",".join(result.order), "solver_status": lr.status if lr else "not run",
+                       "solve_time_s": f"{lr.solve_time:.3f}" if lr else "nan",
+                       "nlp_iterations": lr.nlp_iterations if lr else 0, "verified": bool(rep and rep.verified),
+                       "reasons": "; ".join(rep.reasons) if rep else ""}
+            values |= {k: f"{v:.3f}" for k, v in result.timings.items()}
+        values |= extra or {}
+        self._plan_status = self._diag_status(level, message, values)
+        self._publish_diag_array()
+
+    def _radar_status(self) -> Any:
+        """Radar intake: tracked aircraft, messages received/accepted, rejected by reason, dropped (older than
+        the track held), duplicates and lost tracks; WARN while messages are being rejected."""
+        c = self._radar
+        rejected = {k.removeprefix("rejected."): n for k, n in sorted(c.items()) if k.startswith("rejected.")}
+        fresh = c["rejected"] - self._rejected_reported
+        self._rejected_reported = c["rejected"]
+        values = {"tracked": len(self.tracks), "received": c["received"], "accepted": c["accepted"],
+                  "rejected": c["rejected"], "dropped": c["older"], "duplicates": c["duplicate"], "lost": c["lost"]}
+        values |= {f"rejected.{k}": n for k, n in rejected.items()}
+        message = f"{len(self.tracks)} aircraft tracked"
+        if rejected:
+            message += "; rejected: " + ", ".join(f"{k} {n}" for k, n in rejected.items())
+        return self._diag_status(DIAG_WARN if fresh else DIAG_OK, message, values, name="radar")
+
+    def _publish_diag_array(self) -> None:
+        """One DiagnosticArray: the plan's status first, then the radar's (as a diagnostic_updater would)."""
+        T = self.types
+        with self._diag_lock:
+            header = T.msg("std_msgs/msg/Header")(stamp=time_to_msg(T, time.time()), frame_id="")
+            self.diag_pub.publish(T.msg("diagnostic_msgs/msg/DiagnosticArray")(
+                header=header, status=[self._plan_status, self._radar_status()]))
 
     def _write_status(self) -> None:
         """``planner_status.json`` in the output folder: plan count, busy flag, last plan (for mal-launch)."""
@@ -525,7 +654,7 @@ class PlannerNode:
             land = result.landing_times()
             status["aircraft"] = [{"order": k, "callsign": cs, "landing_time_s": land[cs],
                                    "verified": _aircraft_verified(result, cs)}
-                                  for k, cs in enumerate(result.order, 1)]
+                                  for k, cs in enumerate(result.order, 1) if cs in cur.trajectories]
         try:
             self.out_dir.mkdir(parents=True, exist_ok=True)
             tmp = self.out_dir / (STATUS_FILE + ".tmp")
@@ -633,7 +762,8 @@ def setup_logging(level: str = "INFO") -> None:
 
 
 def main(argv: list[str] | None = None) -> int:
-    """Run the node; 0 on SIGINT/SIGTERM, 2 when the scenario cannot be loaded."""
+    """Run the node until SIGINT/SIGTERM (then it ends by that signal, after a clean shutdown: exit -2/-15 as
+    a supervisor sees it); 2 when the scenario cannot be loaded."""
     args = parse_args(argv)
     setup_logging(args.log_level)
     scenario_path = args.scenario or _default_path("scenarios/thesis.yaml") or "scenarios/thesis.yaml"
@@ -649,14 +779,20 @@ def main(argv: list[str] | None = None) -> int:
     planner = PlannerNode(scenario, params_file=params_file, output_dir=args.out, namespace=args.namespace,
                           backend=args.backend)
 
+    stopped_by: list[int] = []
+
     def on_signal(signum: int, _frame: Any) -> None:
         log.info("%s: shutting down", signal.Signals(signum).name)
+        stopped_by.append(signum)
         planner.node.shutdown()
 
     signal.signal(signal.SIGTERM, on_signal)
     signal.signal(signal.SIGINT, on_signal)
     planner.spin()
     logging.shutdown()
+    if stopped_by:  # cleaned up; now end by the signal, so that a supervisor sees how we ended (exit -15)
+        signal.signal(stopped_by[0], signal.SIG_DFL)
+        os.kill(os.getpid(), stopped_by[0])
     if planner._worker.is_alive():  # a solve in C code cannot be interrupted: do not wait for it
         os._exit(0)
     return 0

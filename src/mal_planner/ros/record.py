@@ -5,7 +5,8 @@ or the defaults (``radar/tracks``, ``landing_plan``, ``diagnostics``, plus ``air
 ``aircraft/<cs>/path`` for the callsigns of ``--callsigns`` or of a ``--scenario``). Types come from the
 topic names (:data:`mal_planner.ros.bagio.TOPIC_TYPES`) or ``topic:pkg/msg/Type``. Latched types (paths,
 landing plan, markers) are subscribed TRANSIENT_LOCAL. Bag timestamps are receive times. SIGINT/SIGTERM
-closes the bag (metadata.yaml written) and exits 0.
+closes the bag (metadata.yaml written) and exits 0. The bag is split into storage files closed every
+``--split-s`` seconds (metadata.yaml rewritten each time), so a SIGKILL loses at most that much.
 
     python -m mal_planner.ros.record out_bag --scenario scenarios/thesis.yaml
 """
@@ -19,7 +20,7 @@ import time
 from typing import Any
 
 import mal_msgs_py
-from mal_planner.ros.bagio import BagError, add_topic, open_writer, qos_for_type, serialize, stop_event, topic_type
+from mal_planner.ros.bagio import BagError, SplitBagWriter, qos_for_type, serialize, stop_event, topic_type
 from mal_planner.ros.transport import QoSProfile, resolve_name
 
 DEFAULT_TOPICS = ("radar/tracks", "landing_plan", "diagnostics")
@@ -34,6 +35,8 @@ def parse_args(argv: list[str] | None = None) -> argparse.Namespace:
     p.add_argument("--scenario", default=None, help="take the callsigns from this scenario file")
     p.add_argument("--storage", choices=("mcap", "sqlite3"), default="mcap")
     p.add_argument("--duration", type=float, default=0.0, help="stop after this many seconds (0 = until signal)")
+    p.add_argument("--split-s", type=float, default=1.0,
+                   help="close a storage file every this many seconds: at most this much is lost on a crash")
     p.add_argument("--namespace", default="", help="namespace for relative topic names")
     return p.parse_args(argv)
 
@@ -70,18 +73,18 @@ def main(argv: list[str] | None = None) -> int:
     logging.basicConfig(level=logging.INFO, format="[%(levelname)s] [%(name)s]: %(message)s")
     try:
         topics = plan_topics(args)
-        writer = open_writer(args.out, args.storage)
+        writer = SplitBagWriter(args.out, args.storage, args.split_s)
     except (BagError, ValueError) as exc:
         print(f"record: {exc}", file=sys.stderr)
         return 2
-    counts: dict[str, int] = {}
+    counts: dict[int, int] = {}
     try:
         from mal_planner.ros.transport import create_node
 
         node = create_node("recorder", args.namespace)
         stop = stop_event()
         for topic, msgtype in topics:
-            conn = add_topic(writer, topic, msgtype)
+            conn = writer.add_topic(topic, msgtype)
             base = qos_for_type(msgtype)
             qos = QoSProfile(depth=_READER_DEPTH, reliable=base.reliable, transient_local=base.transient_local)
             node.create_subscription(msgtype, topic, _writer_callback(writer, conn, msgtype, counts), qos)
@@ -90,6 +93,7 @@ def main(argv: list[str] | None = None) -> int:
         try:
             while not stop.is_set() and time.monotonic() < end:
                 node.spin_once(0.1)
+                writer.maybe_split()
         except KeyboardInterrupt:
             pass
         node.shutdown()
@@ -99,10 +103,10 @@ def main(argv: list[str] | None = None) -> int:
     return 0
 
 
-def _writer_callback(writer: Any, conn: Any, msgtype: str, counts: dict[str, int]) -> Any:
+def _writer_callback(writer: SplitBagWriter, conn: int, msgtype: str, counts: dict[int, int]) -> Any:
     def callback(msg: Any) -> None:
         writer.write(conn, time.time_ns(), serialize(msg, msgtype))
-        counts[conn.topic] = counts.get(conn.topic, 0) + 1
+        counts[conn] = counts.get(conn, 0) + 1
 
     return callback
 

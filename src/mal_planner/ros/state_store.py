@@ -47,44 +47,80 @@ FLOOR_MARGIN_NM = 0.1
 """Tracks this far below the airspace floor (about 185 m) are taken as bad altitude data."""
 FUTURE_TOLERANCE_S = 10.0
 """Stamps this far ahead of the node's clock are in the future."""
+AHEAD_TOLERANCE_S = 2.0
+"""Radar time may run this far ahead of the newest track (plus the wall time since it came): more is a bad
+stamp, which, if kept, would make every later message of that aircraft look old (a frozen track)."""
+
+
+class Rejection(str):
+    """Why a track is refused: the text for the log, ``key`` for the counts (frame, heading, jump, ...)."""
+
+    key: str
+
+    def __new__(cls, key: str, text: str) -> Rejection:
+        obj = super().__new__(cls, text)
+        obj.key = key
+        return obj
 
 
 def check_track(track: Track, frame_id: str, expected_frame: str, airspace: np.ndarray | None = None,
                 margin_nm: float = 1.0, *, expected_speed: float | None = None, newest: float | None = None,
-                timeout_s: float = 0.0, now: float | None = None) -> str | None:
-    """None when the track is usable, else a short reason (NaN, unknown frame/units, absurd values).
+                timeout_s: float = 0.0, now: float | None = None, max_ahead_s: float | None = None,
+                previous: Track | None = None, jump_tol_nm: float = 0.0) -> Rejection | None:
+    """None when the track is usable, else the reason (NaN, unknown frame/units, absurd values, bad stamps).
 
     ``expected_speed``: the scenario's speed of this callsign [nm/s]; ``newest``: the newest stamp held,
-    older than ``timeout_s`` before it is stale; ``now``: the node's clock, for stamps in the future.
+    older than ``timeout_s`` before it is stale, more than ``max_ahead_s`` after it too far ahead; ``now``: the
+    node's clock, for stamps in the future; ``previous``: this aircraft's last track, for jumps it cannot fly
+    (more than ``SPEED_FACTOR`` times its speed, plus ``jump_tol_nm`` of radar error).
     """
     if not CALLSIGN_RE.match(track.callsign):
-        return f"invalid callsign {track.callsign!r}"
-    if frame_id and frame_id != expected_frame:
-        return f"unknown frame {frame_id!r} (expected {expected_frame!r}, ENU metres)"
+        return Rejection("callsign", f"invalid callsign {track.callsign!r}")
+    if frame_id != expected_frame:
+        what = "empty frame_id" if not frame_id else f"unknown frame {frame_id!r}"
+        return Rejection("frame", f"{what} (expected {expected_frame!r}, ENU metres)")
     values = [track.stamp, *track.state.tolist(), track.speed]
     if not all(math.isfinite(v) for v in values):
         names = ["stamp", "x", "y", "z", "flight_path_angle", "heading", "speed"]
         bad = [n for n, v in zip(names, values, strict=True) if not math.isfinite(v)]
-        return "non-finite " + ", ".join(bad)
+        return Rejection("non_finite", "non-finite " + ", ".join(bad))
+    if track.stamp <= 0.0:
+        return Rejection("stamp", f"stamp {track.stamp:g} is not set (a time origin of 0 is refused)")
     if not 0.0 < track.speed <= MAX_SPEED_NM_S:
-        return f"speed {track.speed * 1852.0:.6g} m/s is not in (0, {MAX_SPEED_NM_S * 1852.0:.0f}] m/s (units?)"
+        return Rejection("speed", f"speed {track.speed * 1852.0:.6g} m/s is not in (0, "
+                                  f"{MAX_SPEED_NM_S * 1852.0:.0f}] m/s (units?)")
     if abs(track.state[3]) > math.pi / 2:
-        return f"flight-path angle {track.state[3]:.6g} rad is not in [-pi/2, pi/2] (degrees given?)"
+        return Rejection("flight_path_angle",
+                         f"flight-path angle {track.state[3]:.6g} rad is not in [-pi/2, pi/2] (degrees given?)")
+    if abs(track.state[4]) > 2 * math.pi:
+        return Rejection("heading", f"heading {track.state[4]:.6g} rad is not in [-2 pi, 2 pi] (degrees given?)")
     if airspace is not None:
         pos = track.state[:3]
         if np.any(pos < airspace[:, 0] - margin_nm) or np.any(pos > airspace[:, 1] + margin_nm):
             xyz = ", ".join(f"{v * 1852.0:.1f}" for v in pos)
-            return f"position ({xyz}) m is far outside the airspace (units?)"
+            return Rejection("position", f"position ({xyz}) m is far outside the airspace (units?)")
         floor = float(airspace[2, 0])
         if pos[2] < floor - FLOOR_MARGIN_NM:
-            return f"altitude {pos[2] * 1852.0:.0f} m is far below the airspace floor ({floor * 1852.0:.0f} m)"
+            return Rejection("altitude", f"altitude {pos[2] * 1852.0:.0f} m is far below the airspace floor "
+                                         f"({floor * 1852.0:.0f} m)")
     if expected_speed is not None and not expected_speed / SPEED_FACTOR <= track.speed <= expected_speed * SPEED_FACTOR:
-        return (f"speed {track.speed * 1852.0:.1f} m/s is implausible for this aircraft (scenario: "
-                f"{expected_speed * 1852.0:.1f} m/s)")
+        return Rejection("speed", f"speed {track.speed * 1852.0:.1f} m/s is implausible for this aircraft "
+                                  f"(scenario: {expected_speed * 1852.0:.1f} m/s)")
     if newest is not None and timeout_s > 0 and track.stamp < newest - timeout_s:
-        return f"stale stamp: {newest - track.stamp:.1f} s older than the newest track (track_timeout_s {timeout_s:g})"
+        return Rejection("stale", f"stale stamp: {newest - track.stamp:.1f} s older than the newest track "
+                                  f"(track_timeout_s {timeout_s:g})")
     if now is not None and track.stamp > now + FUTURE_TOLERANCE_S:
-        return f"stamp {track.stamp:.3f} is {track.stamp - now:.1f} s in the future"
+        return Rejection("future", f"stamp {track.stamp:.3f} is {track.stamp - now:.1f} s in the future")
+    if newest is not None and max_ahead_s is not None and track.stamp > newest + max_ahead_s:
+        return Rejection("future", f"stamp {track.stamp:.3f} is {track.stamp - newest:.1f} s ahead of the newest "
+                                   f"track (at most {max_ahead_s:.1f} s)")
+    if previous is not None and track.stamp > previous.stamp:
+        dt = track.stamp - previous.stamp
+        moved = float(np.linalg.norm(track.state[:3] - previous.state[:3]))
+        reach = SPEED_FACTOR * max(track.speed, previous.speed) * dt + jump_tol_nm
+        if moved > reach:
+            return Rejection("jump", f"jump of {moved * 1852.0:.0f} m in {dt:.2f} s (it can fly at most "
+                                     f"{reach * 1852.0:.0f} m)")
     return None
 
 
@@ -95,14 +131,22 @@ class TrackStore:
         self._lock = threading.Lock()
         self._tracks: dict[str, Track] = {}
 
-    def update(self, track: Track) -> bool:
-        """Store ``track`` if it is newer than the one held; True when stored."""
+    def update(self, track: Track) -> str:
+        """Store ``track`` if it is newer than the one held: ``stored``; else ``older``, ``duplicate`` (the same
+        state again, e.g. from a second topic) or ``conflict`` (another state with the same stamp)."""
         with self._lock:
             old = self._tracks.get(track.callsign)
-            if old is not None and track.stamp <= old.stamp:
-                return False
+            if old is not None and track.stamp < old.stamp:
+                return "older"
+            if old is not None and track.stamp == old.stamp:
+                same = np.allclose(track.state, old.state, rtol=0.0, atol=1e-9) and abs(track.speed - old.speed) < 1e-12
+                return "duplicate" if same else "conflict"
             self._tracks[track.callsign] = track
-            return True
+            return "stored"
+
+    def get(self, callsign: str) -> Track | None:
+        with self._lock:
+            return self._tracks.get(callsign)
 
     def snapshot(self) -> dict[str, Track]:
         with self._lock:
