@@ -180,3 +180,64 @@ def test_scenario_wake_option_checks_the_categories() -> None:
     data["separation"]["wake"] = "faa"
     with pytest.raises(ScenarioError, match="wake"):
         parse_scenario(data)
+
+
+def _scenario_data(name: str = "five_aircraft.yaml") -> dict:
+    import yaml
+
+    return yaml.safe_load((Path(__file__).resolve().parents[1] / "scenarios" / name).read_text())
+
+
+def test_make_schedule_goes_through_sequencing_with_the_scenario_strategy() -> None:
+    """fcfs (default) lands in order of the earliest times; optimal puts the heavy that would hold the others
+    back by its wake minima last, and its total delay is below first come, first served's."""
+    from mal_planner.initializer.schedule import make_schedule, planned_spacing
+    from mal_planner.initializer.timing import earliest_landing_times
+    from mal_planner.scenario import parse_scenario
+
+    data = _scenario_data()
+    data["separation"]["wake"] = "icao"
+    for ac, cat in zip(data["aircraft"], "HMLML", strict=True):
+        ac["wake_category"] = cat
+    fcfs = parse_scenario(data)
+    earliest = earliest_landing_times(fcfs)
+    first = make_schedule(fcfs, earliest)
+    assert list(first.order) == sorted(earliest, key=earliest.get) and first.strategy == "fcfs"
+    data["sequencing"] = {"strategy": "optimal", "time_limit_s": 5}
+    optimal = make_schedule(parse_scenario(data), earliest)
+    assert optimal.strategy == "optimal" and optimal.status == "optimal"
+    assert optimal.order[-1] == "B1" and first.order[0] == "B1"  # the heavy: first come, landed last
+    for schedule in (first, optimal):
+        for a, b in itertools.pairwise(schedule.order):
+            need = planned_spacing(fcfs, fcfs.aircraft_by_callsign(a), fcfs.aircraft_by_callsign(b))
+            assert schedule.times[b] - schedule.times[a] >= need - 1e-9
+    delay = {s.strategy: sum(s.delay(cs) for cs in s.order) for s in (first, optimal)}
+    assert 0.0 <= delay["optimal"] < delay["fcfs"]
+
+
+@pytest.mark.parametrize(("sequencing", "message"), [
+    ({"strategy": "best"}, "sequencing.strategy"),
+    ({"max_shift": -1}, "sequencing.max_shift"),
+    ({"time_limit_s": 0}, "sequencing.time_limit_s"),
+    ({"strategy": "optimal", "gap": 1}, "sequencing.gap"),
+])
+def test_bad_sequencing_options_are_one_line_errors(sequencing: dict, message: str) -> None:
+    from mal_planner.scenario import ScenarioError, parse_scenario
+
+    data = _scenario_data()
+    data["sequencing"] = sequencing
+    with pytest.raises(ScenarioError, match=message) as err:
+        parse_scenario(data, "x.yaml")
+    assert "\n" not in str(err.value)
+
+
+def test_fixed_landing_times_closer_than_their_wake_minimum_are_refused() -> None:
+    from mal_planner.errors import InfeasibleRequest
+    from mal_planner.initializer.schedule import check_request
+    from mal_planner.scenario import parse_scenario
+
+    data = _scenario_data("thesis.yaml")
+    data["separation"]["wake"] = "icao"
+    data["aircraft"][0]["wake_category"] = "H"  # A1 lands 15 s before the medium A2: 5 nm needs 125 s
+    with pytest.raises(InfeasibleRequest, match=r"A1 and A2 land 15 s apart .* icao wake minimum H->M needs 125.0 s"):
+        check_request(parse_scenario(data))
