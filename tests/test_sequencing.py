@@ -241,3 +241,37 @@ def test_fixed_landing_times_closer_than_their_wake_minimum_are_refused() -> Non
     data["aircraft"][0]["wake_category"] = "H"  # A1 lands 15 s before the medium A2: 5 nm needs 125 s
     with pytest.raises(InfeasibleRequest, match=r"A1 and A2 land 15 s apart .* icao wake minimum H->M needs 125.0 s"):
         check_request(parse_scenario(data))
+
+
+def test_mixed_wake_scenario_plans_verified_with_the_table_spacings(tmp_path: Path) -> None:
+    """scenarios/wake_mixed.yaml: the optimal sequence puts the lights first and the heavies last; the plan is
+    verified, and every consecutive landing of the flown plan is at least the ICAO table's distance apart at the
+    follower's speed (recomputed here from the published table, not taken from the planner)."""
+    import json
+
+    from mal_planner.pipeline import PlanOptions, plan
+    from mal_planner.report import validation_report, write_outputs
+    from mal_planner.scenario import load_scenario
+
+    icao_nm = {("H", "H"): 4.0, ("H", "M"): 5.0, ("H", "L"): 6.0, ("M", "L"): 5.0}  # Doc 4444, J not used
+    scenario = load_scenario(Path(__file__).resolve().parents[1] / "scenarios" / "wake_mixed.yaml")
+    result = plan(scenario, PlanOptions(seed=0))
+    assert result.verified, result.verification.reasons
+    landed = result.landing_times()
+    order = sorted(landed, key=landed.get)
+    categories = [scenario.aircraft_by_callsign(cs).wake_category for cs in order]
+    assert categories == ["L", "L", "M", "H", "H"]
+    for a, b in itertools.pairwise(order):
+        lead, follow = scenario.aircraft_by_callsign(a), scenario.aircraft_by_callsign(b)
+        nm = max(icao_nm.get((lead.wake_category, follow.wake_category), 0.0), scenario.separation_nm)
+        assert landed[b] - landed[a] >= max(nm / follow.speed, scenario.landing_spacing_s), (a, b)
+    assert landed[order[-1]] - landed[order[-2]] >= 100.0  # heavy behind heavy: 4 nm at 0.04 nm/s
+    write_outputs(result, tmp_path, figures="none")
+    doc = json.loads((tmp_path / "plan.json").read_text())
+    sequence = doc["sequence"]
+    assert sequence["strategy"] == "optimal" and [r["callsign"] for r in sequence["aircraft"]] == order
+    assert all(r["delay_s"] >= -1e-6 for r in sequence["aircraft"])
+    gaps = doc["verification"]["landings"]
+    assert [g["pair"] for g in gaps] == [f"{a}->{b}" for a, b in itertools.pairwise(order)]
+    assert all(g["gap_s"] >= g["needed_s"] for g in gaps) and gaps[-1]["needed_s"] == pytest.approx(100.0)
+    assert "## Landing spacing" in validation_report(result) and "H->H | 4 |" in validation_report(result)
