@@ -275,3 +275,22 @@ def test_mixed_wake_scenario_plans_verified_with_the_table_spacings(tmp_path: Pa
     assert [g["pair"] for g in gaps] == [f"{a}->{b}" for a, b in itertools.pairwise(order)]
     assert all(g["gap_s"] >= g["needed_s"] for g in gaps) and gaps[-1]["needed_s"] == pytest.approx(100.0)
     assert "## Landing spacing" in validation_report(result) and "H->H | 4 |" in validation_report(result)
+
+
+def test_free_landing_times_keep_each_pairs_wake_spacing_in_the_nlp() -> None:
+    """With free landing times the NLP's landing-spacing events are each consecutive pair's spacing with wake
+    (heavy behind heavy: 100 s at 0.04 nm/s), not one number for every pair."""
+    from mal_planner.initializer.schedule import planned_spacing
+    from mal_planner.landing.guess import straight_line_guess
+    from mal_planner.landing.problem import build_landing_problem
+    from mal_planner.landing.solve import layout_for
+    from mal_planner.scenario import load_scenario
+
+    scenario = load_scenario(Path(__file__).resolve().parents[1] / "scenarios" / "wake_mixed.yaml")
+    order = ["B5", "B4", "B2", "B1", "B3"]
+    guesses = straight_line_guess(scenario, order, [150.0, 165.0, 180.0, 195.0, 295.0])
+    built = build_landing_problem(scenario, layout_for(scenario, guesses), guesses, fixed_landing_times=False)
+    spacing = list(built.problem.events_lb)[-(len(order) - 1):]
+    need = [planned_spacing(scenario, scenario.aircraft_by_callsign(a), scenario.aircraft_by_callsign(b))
+            for a, b in itertools.pairwise(order)]
+    assert spacing == pytest.approx(need) and spacing[-1] > 100.0 > spacing[0] > scenario.landing_spacing_s
