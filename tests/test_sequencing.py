@@ -180,3 +180,117 @@ def test_scenario_wake_option_checks_the_categories() -> None:
     data["separation"]["wake"] = "faa"
     with pytest.raises(ScenarioError, match="wake"):
         parse_scenario(data)
+
+
+def _scenario_data(name: str = "five_aircraft.yaml") -> dict:
+    import yaml
+
+    return yaml.safe_load((Path(__file__).resolve().parents[1] / "scenarios" / name).read_text())
+
+
+def test_make_schedule_goes_through_sequencing_with_the_scenario_strategy() -> None:
+    """fcfs (default) lands in order of the earliest times; optimal puts the heavy that would hold the others
+    back by its wake minima last, and its total delay is below first come, first served's."""
+    from mal_planner.initializer.schedule import make_schedule, planned_spacing
+    from mal_planner.initializer.timing import earliest_landing_times
+    from mal_planner.scenario import parse_scenario
+
+    data = _scenario_data()
+    data["separation"]["wake"] = "icao"
+    for ac, cat in zip(data["aircraft"], "HMLML", strict=True):
+        ac["wake_category"] = cat
+    fcfs = parse_scenario(data)
+    earliest = earliest_landing_times(fcfs)
+    first = make_schedule(fcfs, earliest)
+    assert list(first.order) == sorted(earliest, key=earliest.get) and first.strategy == "fcfs"
+    data["sequencing"] = {"strategy": "optimal", "time_limit_s": 5}
+    optimal = make_schedule(parse_scenario(data), earliest)
+    assert optimal.strategy == "optimal" and optimal.status == "optimal"
+    assert optimal.order[-1] == "B1" and first.order[0] == "B1"  # the heavy: first come, landed last
+    for schedule in (first, optimal):
+        for a, b in itertools.pairwise(schedule.order):
+            need = planned_spacing(fcfs, fcfs.aircraft_by_callsign(a), fcfs.aircraft_by_callsign(b))
+            assert schedule.times[b] - schedule.times[a] >= need - 1e-9
+    delay = {s.strategy: sum(s.delay(cs) for cs in s.order) for s in (first, optimal)}
+    assert 0.0 <= delay["optimal"] < delay["fcfs"]
+
+
+@pytest.mark.parametrize(("sequencing", "message"), [
+    ({"strategy": "best"}, "sequencing.strategy"),
+    ({"max_shift": -1}, "sequencing.max_shift"),
+    ({"time_limit_s": 0}, "sequencing.time_limit_s"),
+    ({"strategy": "optimal", "gap": 1}, "sequencing.gap"),
+])
+def test_bad_sequencing_options_are_one_line_errors(sequencing: dict, message: str) -> None:
+    from mal_planner.scenario import ScenarioError, parse_scenario
+
+    data = _scenario_data()
+    data["sequencing"] = sequencing
+    with pytest.raises(ScenarioError, match=message) as err:
+        parse_scenario(data, "x.yaml")
+    assert "\n" not in str(err.value)
+
+
+def test_fixed_landing_times_closer_than_their_wake_minimum_are_refused() -> None:
+    from mal_planner.errors import InfeasibleRequest
+    from mal_planner.initializer.schedule import check_request
+    from mal_planner.scenario import parse_scenario
+
+    data = _scenario_data("thesis.yaml")
+    data["separation"]["wake"] = "icao"
+    data["aircraft"][0]["wake_category"] = "H"  # A1 lands 15 s before the medium A2: 5 nm needs 125 s
+    with pytest.raises(InfeasibleRequest, match=r"A1 and A2 land 15 s apart .* icao wake minimum H->M needs 125.0 s"):
+        check_request(parse_scenario(data))
+
+
+def test_mixed_wake_scenario_plans_verified_with_the_table_spacings(tmp_path: Path) -> None:
+    """scenarios/wake_mixed.yaml: the optimal sequence puts the lights first and the heavies last; the plan is
+    verified, and every consecutive landing of the flown plan is at least the ICAO table's distance apart at the
+    follower's speed (recomputed here from the published table, not taken from the planner)."""
+    import json
+
+    from mal_planner.pipeline import PlanOptions, plan
+    from mal_planner.report import validation_report, write_outputs
+    from mal_planner.scenario import load_scenario
+
+    icao_nm = {("H", "H"): 4.0, ("H", "M"): 5.0, ("H", "L"): 6.0, ("M", "L"): 5.0}  # Doc 4444, J not used
+    scenario = load_scenario(Path(__file__).resolve().parents[1] / "scenarios" / "wake_mixed.yaml")
+    result = plan(scenario, PlanOptions(seed=0))
+    assert result.verified, result.verification.reasons
+    landed = result.landing_times()
+    order = sorted(landed, key=landed.get)
+    categories = [scenario.aircraft_by_callsign(cs).wake_category for cs in order]
+    assert categories == ["L", "L", "M", "H", "H"]
+    for a, b in itertools.pairwise(order):
+        lead, follow = scenario.aircraft_by_callsign(a), scenario.aircraft_by_callsign(b)
+        nm = max(icao_nm.get((lead.wake_category, follow.wake_category), 0.0), scenario.separation_nm)
+        assert landed[b] - landed[a] >= max(nm / follow.speed, scenario.landing_spacing_s), (a, b)
+    assert landed[order[-1]] - landed[order[-2]] >= 100.0  # heavy behind heavy: 4 nm at 0.04 nm/s
+    write_outputs(result, tmp_path, figures="none")
+    doc = json.loads((tmp_path / "plan.json").read_text())
+    sequence = doc["sequence"]
+    assert sequence["strategy"] == "optimal" and [r["callsign"] for r in sequence["aircraft"]] == order
+    assert all(r["delay_s"] >= -1e-6 for r in sequence["aircraft"])
+    gaps = doc["verification"]["landings"]
+    assert [g["pair"] for g in gaps] == [f"{a}->{b}" for a, b in itertools.pairwise(order)]
+    assert all(g["gap_s"] >= g["needed_s"] for g in gaps) and gaps[-1]["needed_s"] == pytest.approx(100.0)
+    assert "## Landing spacing" in validation_report(result) and "H->H | 4 |" in validation_report(result)
+
+
+def test_free_landing_times_keep_each_pairs_wake_spacing_in_the_nlp() -> None:
+    """With free landing times the NLP's landing-spacing events are each consecutive pair's spacing with wake
+    (heavy behind heavy: 100 s at 0.04 nm/s), not one number for every pair."""
+    from mal_planner.initializer.schedule import planned_spacing
+    from mal_planner.landing.guess import straight_line_guess
+    from mal_planner.landing.problem import build_landing_problem
+    from mal_planner.landing.solve import layout_for
+    from mal_planner.scenario import load_scenario
+
+    scenario = load_scenario(Path(__file__).resolve().parents[1] / "scenarios" / "wake_mixed.yaml")
+    order = ["B5", "B4", "B2", "B1", "B3"]
+    guesses = straight_line_guess(scenario, order, [150.0, 165.0, 180.0, 195.0, 295.0])
+    built = build_landing_problem(scenario, layout_for(scenario, guesses), guesses, fixed_landing_times=False)
+    spacing = list(built.problem.events_lb)[-(len(order) - 1):]
+    need = [planned_spacing(scenario, scenario.aircraft_by_callsign(a), scenario.aircraft_by_callsign(b))
+            for a, b in itertools.pairwise(order)]
+    assert spacing == pytest.approx(need) and spacing[-1] > 100.0 > spacing[0] > scenario.landing_spacing_s

@@ -47,6 +47,26 @@ def _limits(result: PlanResult, callsign: str) -> dict:
     return {"n_h": list(lim.n_h), "n_v": list(lim.n_v), "bank_angle_max": lim.bank_angle_max}
 
 
+def _sequence(result: PlanResult) -> dict | None:
+    """Who lands when: each aircraft's slot, target, landing time and delay, from the schedule."""
+    schedule = getattr(result.initial, "schedule", None)
+    if schedule is None:
+        return None
+    landing = result.landing_times()
+    rows = []
+    for slot, cs in enumerate(result.order, start=1):
+        t = landing.get(cs, schedule.times.get(cs))
+        target = schedule.target.get(cs)
+        category = result.scenario.aircraft_by_callsign(cs).wake_category
+        rows.append({"callsign": cs, "slot": slot, "wake_category": category,
+                     "fixed": cs in schedule.fixed, "earliest_s": _num(schedule.earliest.get(cs)),
+                     "target_s": _num(target), "scheduled_s": _num(schedule.times.get(cs)), "landing_time_s": _num(t),
+                     "delay_s": None if t is None or target is None else _num(t - target)})
+    return {"strategy": schedule.strategy, "status": schedule.status, "gap": _num(schedule.gap),
+            "wake": result.scenario.wake, "total_delay_s": _num(sum(r["delay_s"] or 0.0 for r in rows)),
+            "aircraft": rows}
+
+
 def result_to_dict(result: PlanResult) -> dict:
     """The JSON document (planner units: nm, s, rad)."""
     initial = result.initial
@@ -81,6 +101,7 @@ def result_to_dict(result: PlanResult) -> dict:
         "status": status,
         "verified": bool(result.verification.verified) if result.verification else False,
         "landing_order": result.order,
+        "sequence": _sequence(result),
         "initializer": {"planner": initial.planner, "seed": initial.seed, "timings_s": initial.timings,
                         "collision_checks": initial.collision_checks},
         "optimizer": result.landing.stats() if result.landing is not None else None,
@@ -143,6 +164,20 @@ def validation_report(result: PlanResult) -> str:
             x, _, z = ev["position"]
             lines.append(f"| {a.callsign} | {ev['time_s']:.2f} | {x:.4f} | {z:.4f} | "
                          f"{math.degrees(ev['gamma']):.3f} | {math.degrees(ev['heading']):.3f} |")
+    sequence = _sequence(result)
+    if sequence is not None:
+        lines += ["", f"## Landing sequence ({sequence['strategy']}, wake table {sequence['wake']})", "",
+                  "| slot | aircraft | wake | target (s) | lands (s) | delay (s) |", "|---|---|---|---|---|---|"]
+        for r in sequence["aircraft"]:
+            cells = ["-" if r[k] is None else f"{r[k]:.2f}" for k in ("target_s", "landing_time_s", "delay_s")]
+            lines.append(f"| {r['slot']} | {r['callsign']} | {r['wake_category'] or '-'} | {' | '.join(cells)} |")
+        lines += ["", f"Total delay against the targets: {sequence['total_delay_s']:.1f} s"]
+    if rep.landings:
+        lines += ["", "## Landing spacing (consecutive pairs)", "",
+                  "| pair | wake | table (nm) | needs (s) | got (s) |", "|---|---|---|---|---|"]
+        for g in rep.landings:
+            lines.append(f"| {g.pair} | {g.wake or '-'} | {'-' if g.wake_nm is None else f'{g.wake_nm:g}'} | "
+                         f"{g.needed_s:.2f} | {g.gap_s:.3f} |")
     lines += ["", f"**verified: {str(rep.verified).lower()}**"]
     lines += [f"- {r}" for r in rep.reasons]
     return "\n".join(lines) + "\n"

@@ -25,6 +25,7 @@ from pydantic import BaseModel, ConfigDict, Discriminator, Field, Tag, Validatio
 from mal_planner.dynamics import DYNAMICS_MODELS, ControlLimits, DynamicsModel, make_dynamics
 from mal_planner.geo.frame import GeoFrame
 from mal_planner.obstacles import Gate, Superquadric, wall_with_hole
+from mal_planner.sequencing.problem import SequencingOptions, Strategy
 from mal_planner.sequencing.wake import WakeTableName
 from mal_planner.sequencing.wake import categories as wake_categories
 from mal_planner.units import ft_to_nm, kt_to_nm_per_s
@@ -327,6 +328,21 @@ class SeparationConfig(_Strict):
         return self
 
 
+class SequencingConfig(_Strict):
+    """How the landing order and the free landing times are decided (:mod:`mal_planner.sequencing`)."""
+
+    strategy: Strategy = "fcfs"
+    """fcfs: first come (turn-aware earliest landing), first served; optimal: the MILP that minimises the total
+    delay against the earliest landing times."""
+    max_shift: int | None = Field(None, ge=0)
+    """optimal: no aircraft more than this many places from its first-come position (None: any order)."""
+    time_limit_s: float = Field(10.0, gt=0.0)
+    """optimal: the MILP returns the best order found when this runs out."""
+
+    def options(self) -> SequencingOptions:
+        return SequencingOptions(strategy=self.strategy, max_shift=self.max_shift, time_limit_s=self.time_limit_s)
+
+
 class ScenarioConfig(_Strict):
     """The YAML file's schema."""
 
@@ -340,6 +356,7 @@ class ScenarioConfig(_Strict):
     obstacles: list[ObstacleConfig] = []
     gates: list[GateConfig] = []
     separation: SeparationConfig = SeparationConfig()
+    sequencing: SequencingConfig = SequencingConfig()
     limits: LimitsConfig = LimitsConfig()
 
     @model_validator(mode="after")
@@ -417,6 +434,8 @@ class Scenario:
     """Where the local frame lies on the Earth, for a scenario whose runway has a threshold; None: local only."""
     wake: str = "none"
     """The wake-turbulence table between successive landings (``separation.wake``)."""
+    sequencing: SequencingOptions = SequencingOptions()
+    """How the order and the free landing times are decided (``sequencing:``)."""
 
     @property
     def separation_radius_nm(self) -> float:
@@ -538,6 +557,7 @@ def build_scenario(config: ScenarioConfig, source: str = "<scenario>") -> Scenar
         landing_spacing_s=config.separation.landing_spacing_s,
         max_landing_spacing_s=config.separation.max_landing_spacing_s,
         wake=config.separation.wake,
+        sequencing=config.sequencing.options(),
         gravity=config.gravity,
         config=config,
         source=source,

@@ -101,6 +101,21 @@ class PairCheck:
 
 
 @dataclass
+class LandingGap:
+    """Two consecutive landings: the time between them against the time they need."""
+
+    pair: str
+    """leader->follower."""
+    gap_s: float
+    needed_s: float
+    """The scenario's landing spacing, or the wake minimum at the follower's speed when that is more."""
+    wake: str | None = None
+    """leader->follower categories when a wake table applies."""
+    wake_nm: float | None = None
+    """The table's distance (the radar minimum where the table lists none)."""
+
+
+@dataclass
 class VerificationReport:
     verified: bool
     reasons: list[str]
@@ -109,6 +124,8 @@ class VerificationReport:
     tolerances: Tolerances
     by_aircraft: dict[str, list[str]] = field(default_factory=dict)
     """The reasons that concern each aircraft (a separation failure concerns both)."""
+    landings: list[LandingGap] = field(default_factory=list)
+    """Consecutive landings in landing order."""
 
     def aircraft_verified(self, callsign: str) -> bool:
         return not self.by_aircraft.get(callsign)
@@ -472,22 +489,27 @@ def verify(scenario: Scenario, trajectories: list[Trajectory], tol: Tolerances |
                                     float(np.min(n_v)), violation, hits, hit_times, events, runway, limit_times))
     # Landing-time spacing in landing order.
     order = sorted(checks, key=lambda c: c.landing_time)
+    landings: list[LandingGap] = []
     for a, b in itertools.pairwise(order):
         gap = b.landing_time - a.landing_time
+        record = LandingGap(f"{a.callsign}->{b.callsign}", gap, scenario.landing_spacing_s)
+        landings.append(record)
         if gap < scenario.landing_spacing_s - tol.landing_time_s:
             fail((a.callsign, b.callsign), f"{a.callsign}->{b.callsign}: landings {gap:.2f} s apart "
                                            f"(minimum {scenario.landing_spacing_s:.1f} s)")
-        elif scenario.wake != "none":
+        if scenario.wake != "none":
             # The wake table's distance, flown by the follower at its own speed (checked here, not taken from
-            # the schedule's spacing).
+            # the schedule's spacing), with no tolerance: the schedule keeps a margin for round-off.
             lead, follow = scenario.aircraft_by_callsign(a.callsign), scenario.aircraft_by_callsign(b.callsign)
             nm = wake_distance_nm(scenario.wake, lead.wake_category, follow.wake_category, scenario.separation_nm)
-            if gap < nm / follow.speed - tol.landing_time_s:
+            record.wake, record.wake_nm = f"{lead.wake_category}->{follow.wake_category}", nm
+            record.needed_s = max(record.needed_s, nm / follow.speed)
+            if gap < nm / follow.speed:
                 fail((a.callsign, b.callsign), f"{a.callsign}->{b.callsign}: landings {gap:.2f} s apart, the "
                                                f"{scenario.wake} wake minimum {lead.wake_category}->"
                                                f"{follow.wake_category} of {nm:g} nm needs {nm / follow.speed:.1f} s")
     pairs = _separation(flown, scenario, tol, fail)
-    return VerificationReport(not reasons, reasons, checks, pairs, tol, by_aircraft)
+    return VerificationReport(not reasons, reasons, checks, pairs, tol, by_aircraft, landings)
 
 
 def _separation(flown: dict[str, tuple[np.ndarray, np.ndarray]], scenario: Scenario, tol: Tolerances,

@@ -1,10 +1,11 @@
 """The landing schedule: who lands when, decided before any path is stretched or any NLP is built.
 
-* Fixed landing times (the scenario gives every aircraft one): the order follows the times.
-* Free landing times: first come, first served by the turn-aware earliest landing time
-  (:mod:`mal_planner.initializer.timing`), each aircraft at ``max(earliest + margin, previous + spacing)``.
-* Some fixed, some free: the fixed ones keep their times; the others, in order of their earliest time,
-  take the earliest slot after ``earliest + margin`` that keeps the minimum spacing to every time taken.
+The order and the free times come from :mod:`mal_planner.sequencing`, the one place where they are decided
+(:func:`make_schedule`): fixed landing times (the scenario's) are kept; free aircraft may land from their
+turn-aware earliest time (:mod:`mal_planner.initializer.timing`) plus a margin on, each pair at least
+:func:`landing_spacing` apart (wake turbulence included). Strategy ``fcfs`` (the default): in order of the
+earliest times, each at the earliest slot that keeps the spacing to every time taken; ``optimal``: the MILP's
+order and times of least total delay (scenario ``sequencing:``).
 
 :func:`check_request` finds the requests no plan can meet (exit 2 / a FAILED status with the reason), so
 that they never reach the optimizer as solver noise.
@@ -15,7 +16,7 @@ from __future__ import annotations
 import itertools
 import logging
 from collections.abc import Mapping
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 import numpy as np
 
@@ -24,6 +25,7 @@ from mal_planner.initializer.approach import FINAL_RADII
 from mal_planner.initializer.timing import reachable_lower_bound
 from mal_planner.scales import Scales
 from mal_planner.scenario import Aircraft, Scenario
+from mal_planner.sequencing import SequencingInfeasible, SequencingProblem, sequence
 from mal_planner.sequencing.wake import wake_spacing_s
 
 log = logging.getLogger("mal_planner.initializer")
@@ -31,6 +33,9 @@ log = logging.getLogger("mal_planner.initializer")
 DEFAULT_MARGIN_TURN_TIMES = 2.0 / 3.0
 """Scheduled landing times sit this many turn times after the turn-aware earliest estimate (room for the
 optimizer; thesis: 5 s)."""
+SPACING_MARGIN_TURN_TIMES = 1.0 / 7500.0
+"""The schedule and the optimizer keep each pair's landing spacing plus this many turn times (thesis: 1 ms, the
+verification's landing-time resolution), so round-off never leaves a pair on the unsafe side of its minimum."""
 
 
 @dataclass(frozen=True)
@@ -43,6 +48,17 @@ class LandingSchedule:
     """Turn-aware earliest landing estimates the schedule was made from."""
     fixed: frozenset[str]
     """Aircraft whose landing time the scenario fixes."""
+    target: dict[str, float] = field(default_factory=dict)
+    """The time each aircraft aims at: the scenario's fixed time, else its earliest plus the schedule's margin."""
+    strategy: str = "fcfs"
+    """The sequencing strategy that chose the order (``sequencing.strategy``)."""
+    status: str = "heuristic"
+    """optimal, feasible (time limit; see ``gap``) or heuristic (first come, first served)."""
+    gap: float | None = None
+
+    def delay(self, callsign: str) -> float:
+        """Seconds after its target that ``callsign`` lands."""
+        return self.times[callsign] - self.target.get(callsign, self.times[callsign])
 
     def time_list(self) -> list[float]:
         return [self.times[cs] for cs in self.order]
@@ -52,8 +68,8 @@ def check_request(scenario: Scenario, gate_margin_nm: float = 0.0) -> None:
     """Raise :class:`InfeasibleRequest` (one line, naming the aircraft and the numbers) for impossible requests.
 
     Checked: separation broken at the start, an aircraft that leaves the airspace through its floor or ceiling
-    whatever it does, fixed landing times closer than the minimum spacing, fixed landing times earlier than
-    any trajectory can reach the runway, a gate hole no aircraft can pass.
+    whatever it does, fixed landing times closer than the minimum spacing or their wake-turbulence minimum,
+    fixed landing times earlier than any trajectory can reach the runway, a gate hole no aircraft can pass.
     """
     sep = scenario.separation_nm
     for a, b in itertools.combinations(scenario.aircraft, 2):
@@ -88,6 +104,11 @@ def check_request(scenario: Scenario, gate_margin_nm: float = 0.0) -> None:
         if tb - ta < scenario.landing_spacing_s - 1e-9:
             raise InfeasibleRequest(f"{a.callsign} and {b.callsign} land {tb - ta:g} s apart ({ta:g} s, {tb:g} s); "
                                     f"the minimum spacing is {scenario.landing_spacing_s:g} s")
+        wake = wake_spacing_s(scenario.wake, a.wake_category, b.wake_category, b.speed, scenario.separation_nm, 0.0)
+        if tb - ta < wake:
+            raise InfeasibleRequest(f"{a.callsign} and {b.callsign} land {tb - ta:g} s apart ({ta:g} s, {tb:g} s); "
+                                    f"the {scenario.wake} wake minimum {a.wake_category}->{b.wake_category} needs "
+                                    f"{wake:.1f} s")
 
 
 def vertical_escape_problem(scenario: Scenario, ac) -> str | None:
@@ -147,35 +168,57 @@ def landing_spacing(scenario: Scenario, leader: Aircraft, follower: Aircraft) ->
     return max(scenario.landing_spacing_s, gap, wake)
 
 
+def planned_spacing(scenario: Scenario, leader: Aircraft, follower: Aircraft) -> float:
+    """:func:`landing_spacing`, with a wake table plus :data:`SPACING_MARGIN_TURN_TIMES`: what the schedule and
+    the optimizer keep, so that the verification's wake check (no tolerance) never finds a pair a round-off short
+    of its minimum. Without one, today's times exactly (the verification's spacing check has a tolerance)."""
+    spacing = landing_spacing(scenario, leader, follower)
+    return spacing if scenario.wake == "none" else spacing + Scales.of(scenario).seconds(SPACING_MARGIN_TURN_TIMES)
+
+
+def sequencing_problem(scenario: Scenario, earliest: Mapping[str, float], margin_s: float) -> SequencingProblem:
+    """The scenario's landings as an aircraft landing problem (:mod:`mal_planner.sequencing`).
+
+    A free aircraft may land from its turn-aware earliest time plus ``margin_s`` on, which is also its target:
+    every second later is one second of delay (no latest time). A fixed landing time is a window of one instant
+    (the scenario's times win; :func:`check_request` checks them against each other). Each pair keeps
+    :func:`planned_spacing`; two fixed aircraft need none from the sequencer."""
+    aircraft = scenario.aircraft
+    n = len(aircraft)
+    start = np.array([float(ac.landing_time) if ac.landing_time is not None else earliest[ac.callsign] + margin_s
+                      for ac in aircraft])
+    latest = np.array([float(ac.landing_time) if ac.landing_time is not None else np.inf for ac in aircraft])
+    separation = np.zeros((n, n))
+    for i, j in itertools.permutations(range(n), 2):
+        if aircraft[i].landing_time is None or aircraft[j].landing_time is None:
+            separation[i, j] = planned_spacing(scenario, aircraft[i], aircraft[j])
+    return SequencingProblem(tuple(ac.callsign for ac in aircraft), start, start.copy(), latest, np.zeros(n),
+                             np.ones(n), separation)
+
+
 def make_schedule(scenario: Scenario, earliest: Mapping[str, float], margin_s: float | None = None
                   ) -> LandingSchedule:
-    """Order and landing times (see the module docstring); ``margin_s`` default: :data:`DEFAULT_MARGIN_TURN_TIMES`.
+    """Order and landing times from :mod:`mal_planner.sequencing` with the scenario's ``sequencing`` strategy
+    (see :func:`sequencing_problem`); ``margin_s`` default: :data:`DEFAULT_MARGIN_TURN_TIMES`.
 
-    Each pair keeps the spacing :func:`landing_spacing` asks for (the scenario's, or more behind a faster
-    aircraft)."""
+    Each pair keeps the spacing :func:`landing_spacing` asks for (the scenario's, more behind a faster aircraft,
+    the wake-turbulence minimum) plus a round-off margin."""
     if margin_s is None:
         margin_s = Scales.of(scenario).seconds(DEFAULT_MARGIN_TURN_TIMES)
-    times: dict[str, float] = {}
-    fixed = frozenset(ac.callsign for ac in scenario.aircraft if ac.landing_time is not None)
     for ac in scenario.aircraft:
-        if ac.landing_time is not None:
-            times[ac.callsign] = float(ac.landing_time)
-            if ac.landing_time < earliest[ac.callsign]:
-                log.warning("%s: fixed landing time %.1f s is before the estimated earliest landing %.1f s; "
-                            "trying anyway", ac.callsign, ac.landing_time, earliest[ac.callsign])
-    free = sorted((ac.callsign for ac in scenario.aircraft if ac.landing_time is None),
-                  key=lambda cs: (earliest[cs], cs))
-    for cs in free:
-        me = scenario.aircraft_by_callsign(cs)
-        t = earliest[cs] + margin_s
-        moved = True
-        while moved:  # the first slot at or after t that keeps the spacing to every time taken
-            moved = False
-            for other, taken in sorted(times.items(), key=lambda item: item[1]):
-                ac = scenario.aircraft_by_callsign(other)
-                if taken <= t < taken + landing_spacing(scenario, ac, me) or \
-                        t <= taken < t + landing_spacing(scenario, me, ac):
-                    t, moved = taken + landing_spacing(scenario, ac, me), True
-        times[cs] = float(t)
+        if ac.landing_time is not None and ac.landing_time < earliest[ac.callsign]:
+            log.warning("%s: fixed landing time %.1f s is before the estimated earliest landing %.1f s; "
+                        "trying anyway", ac.callsign, ac.landing_time, earliest[ac.callsign])
+    problem = sequencing_problem(scenario, earliest, margin_s)
+    try:
+        result = sequence(problem, scenario.sequencing)
+    except (SequencingInfeasible, TimeoutError) as exc:
+        raise InfeasibleRequest(f"sequencing ({scenario.sequencing.strategy}): {exc}") from None
+    if result.status != "heuristic":
+        log.info("sequencing: %s, total delay %.1f s (%s%s, %.2f s)", result.strategy, result.cost, result.status,
+                 "" if result.gap is None else f", gap {result.gap:.2%}", result.solve_time_s)
+    times = {cs: float(t) for cs, t in zip(problem.names, result.times, strict=True)}
     order = tuple(sorted(times, key=lambda cs: (times[cs], earliest[cs], cs)))
-    return LandingSchedule(order, times, dict(earliest), fixed)
+    fixed = frozenset(ac.callsign for ac in scenario.aircraft if ac.landing_time is not None)
+    target = {cs: float(t) for cs, t in zip(problem.names, problem.target, strict=True)}
+    return LandingSchedule(order, times, dict(earliest), fixed, target, result.strategy, result.status, result.gap)

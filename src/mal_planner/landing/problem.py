@@ -21,6 +21,7 @@ import casadi as ca
 import numpy as np
 
 from mal_planner.dynamics import STATE_NAMES, bank_limit_residuals
+from mal_planner.initializer.schedule import planned_spacing
 from mal_planner.landing.guess import AircraftGuess
 from mal_planner.landing.layout import PhaseLayout
 from mal_planner.landing.pairs import PhasePairs, all_pairs
@@ -181,7 +182,9 @@ def build_landing_problem(scenario: Scenario, layout: PhaseLayout, guesses: list
         return ca.vertcat(*out)
 
     n_eq = n * n_states + (n if fixed_landing_times else 0)
-    spacing = [] if fixed_landing_times else [scenario.landing_spacing_s] * (n - 1)
+    # Free landing times: each consecutive pair at least the spacing it needs (wake turbulence included).
+    spacing = [] if fixed_landing_times else [planned_spacing(scenario, aircraft[i], aircraft[i + 1])
+                                              for i in range(n - 1)]
     if not fixed_landing_times and earliest_landing is not None:
         spacing.append(earliest_landing)
     lb = [0.0] * n_eq + spacing

@@ -22,6 +22,7 @@ from dataclasses import dataclass, replace
 
 import numpy as np
 
+from mal_planner.initializer.schedule import planned_spacing
 from mal_planner.landing.guess import AircraftGuess
 from mal_planner.landing.pairs import SAMPLES_PER_TURN_TIME, PairScreen
 from mal_planner.landing.problem import Intruder, phase_guesses
@@ -35,6 +36,7 @@ from mal_planner.landing.solve import (
 )
 from mal_planner.scales import Scales
 from mal_planner.scenario import Scenario
+from mal_planner.sequencing.wake import wake_spacing_s
 from mal_planner.trajectory import closest_approach
 
 log = logging.getLogger("mal_planner.optimizer")
@@ -201,7 +203,7 @@ class SequentialOptimizer:
                 continue
             earliest = None
             if not options.fixed_landing_times and parts:
-                earliest = self._landed(parts[-1]) + scenario.landing_spacing_s
+                earliest = self._after(scenario, parts[-1], guess.callsign)
                 if guess.landing_time < earliest:
                     guess = order[i] = _retimed(guess, earliest)
             mesh = None if meshes is None else meshes.get(guess.callsign)
@@ -249,6 +251,14 @@ class SequentialOptimizer:
     def _landed(part: LandingResult) -> float:
         return part.landing_times[part.trajectories[0].callsign]
 
+    @classmethod
+    def _after(cls, scenario: Scenario, leader: LandingResult, follower: str) -> float:
+        """The earliest landing of ``follower`` right after the aircraft planned in ``leader``: its landing plus the
+        spacing the pair needs (:func:`~mal_planner.initializer.schedule.planned_spacing`, wake included)."""
+        lead = leader.trajectories[0].callsign
+        return cls._landed(leader) + planned_spacing(scenario, scenario.aircraft_by_callsign(lead),
+                                                     scenario.aircraft_by_callsign(follower))
+
     def _recover(self, scenario: Scenario, order: list[AircraftGuess], i: int, parts: list[LandingResult],
                  flown: list[tuple[str, np.ndarray, np.ndarray]], recoveries: list[Recovery], deadline,
                  options: LandingOptions) -> LandingResult | str | None:
@@ -258,7 +268,7 @@ class SequentialOptimizer:
         cs = guess.callsign
         schedule_made = scenario.aircraft_by_callsign(cs).landing_time is None
         traffic = [(t, pos) for _, t, pos in flown]
-        earliest = (self._landed(parts[-1]) + scenario.landing_spacing_s) if parts else None
+        earliest = self._after(scenario, parts[-1], cs) if parts else None
 
         def attempt(name: str, run) -> LandingResult | str | None:
             if deadline is not None and deadline.expired():
@@ -292,11 +302,14 @@ class SequentialOptimizer:
             if part is not None and part.success:
                 landed = self._landed(part)
                 order[i] = _retimed(order[i], landed)
-                for j in range(i + 1, len(order)):  # those after it move back by as much
-                    follows = landed + (j - i) * scenario.landing_spacing_s
+                follows = landed
+                for j in range(i + 1, len(order)):  # those after it move back by as much as their spacing needs
+                    follows += planned_spacing(scenario, scenario.aircraft_by_callsign(order[j - 1].callsign),
+                                               scenario.aircraft_by_callsign(order[j].callsign))
                     if order[j].landing_time < follows and \
                             scenario.aircraft_by_callsign(order[j].callsign).landing_time is None:
                         order[j] = _retimed(order[j], follows)
+                    follows = max(follows, order[j].landing_time)
             return part
 
         def give_way() -> LandingResult | None:
@@ -313,7 +326,7 @@ class SequentialOptimizer:
                      ", ".join(flown[b][0] for b in blockers))
             for k in reversed(blockers):
                 others = flown[:k] + flown[k + 1:] + [(cs, mine.t, mine.positions)]
-                earlier = (self._landed(parts[k - 1]) + scenario.landing_spacing_s
+                earlier = (self._after(scenario, parts[k - 1], flown[k][0])
                            if k > 0 and not options.fixed_landing_times else None)
                 moved = self._solve_one(scenario, _guess_from(parts[k]), others, parts[k], None, deadline, earlier,
                                         options)
@@ -330,7 +343,10 @@ class SequentialOptimizer:
             if scenario.aircraft_by_callsign(previous.callsign).landing_time is not None:
                 return None
             slot_early, slot_late = previous.landing_time, guess.landing_time
-            order[i - 1], order[i] = _retimed(guess, slot_early), _retimed(previous, slot_late)
+            swapped = [*order[:i - 1], _retimed(guess, slot_early), _retimed(previous, slot_late), *order[i + 1:]]
+            if not _spaced(scenario, swapped[max(i - 2, 0):i + 2]):
+                return None  # the exchanged slots would break a pair's spacing (e.g. its wake minimum)
+            order[i - 1], order[i] = swapped[i - 1], swapped[i]
             return "swap"
 
         steps = [("another guess", another_guess)]
@@ -352,6 +368,18 @@ def _guess_distance(guess: AircraftGuess, t: np.ndarray, pos: np.ndarray, scales
     dt = scales.seconds(1.0 / SAMPLES_PER_TURN_TIME)
     ts = np.arange(0.0, guess.landing_time + dt, dt)
     return closest_approach(ts, guess.state_at(ts)[:, :3], t, pos)
+
+
+def _spaced(scenario: Scenario, guesses: Sequence[AircraftGuess]) -> bool:
+    """Whether consecutive guesses land at least the scenario's spacing and their wake minimum apart (what the
+    verification checks; the slots of a schedule made without a wake table always are)."""
+    def minimum(a: AircraftGuess, b: AircraftGuess) -> float:
+        lead, follow = scenario.aircraft_by_callsign(a.callsign), scenario.aircraft_by_callsign(b.callsign)
+        return wake_spacing_s(scenario.wake, lead.wake_category, follow.wake_category, follow.speed,
+                              scenario.separation_nm, scenario.landing_spacing_s)
+
+    return scenario.wake == "none" or all(b.landing_time - a.landing_time >= minimum(a, b)
+                                          for a, b in zip(guesses[:-1], guesses[1:], strict=True))
 
 
 def _retimed(guess: AircraftGuess, landing_time: float) -> AircraftGuess:
