@@ -41,6 +41,7 @@ from mal_planner.dynamics import bank_limit_residuals  # noqa: E402
 from mal_planner.initializer import plan_initial  # noqa: E402
 from mal_planner.landing.problem import GAMMA_BOUND, HEADING_BOUND, SafetyMargins, phase_guess  # noqa: E402
 from mal_planner.landing.solve import LandingOptions, layout_for, make_guesses  # noqa: E402
+from mal_planner.scales import Scales  # noqa: E402
 from mal_planner.scenario import load_scenario  # noqa: E402
 from mal_planner.trajectory import Trajectory  # noqa: E402
 from mal_planner.verification import verify  # noqa: E402
@@ -60,7 +61,7 @@ def solve_naive(scenario_path: str | Path, intervals: int = 100, seed: int = 0, 
     t_init = time.perf_counter() - t_start
 
     t_build0 = time.perf_counter()
-    m = SafetyMargins()
+    m = SafetyMargins().in_nm(Scales.of(sc))
     gate = sc.gates[0] if sc.gates else None
     aircraft = [sc.aircraft_by_callsign(cs) for cs in layout.callsigns]
     obstacles = [ob.inflated(m.obstacle_nm) for ob in sc.obstacles]

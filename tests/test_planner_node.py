@@ -297,8 +297,10 @@ def test_replay_to_paths_services_and_latched(backend_snippet, snippet, tmp_path
         late = snippet(PATH_LISTENER)
         late_result = json.loads(late.wait_for_line("RESULT ", 30)[len("RESULT "):])
         assert late_result["plan_stamp"] < BAG_T0 + 25.0
-        assert sorted(late_result["order"]) == ["A1", "A2", "A3"]
-        assert all(late_result["paths"][cs]["n"] > 10 for cs in ("A1", "A2", "A3"))
+        # The latched plan is the radar plan or the Trigger's (radar time ~20 s, by when A2 of the recording may be
+        # leaving through the ceiling and left out, depending on how fast this machine reached it).
+        assert {"A1", "A3"} <= set(late_result["order"]) <= {"A1", "A2", "A3"}
+        assert all(late_result["paths"][cs]["n"] > 10 for cs in late_result["order"])
         assert late_result["paths"]["A1"]["stamps"][0] == pytest.approx(late_result["plan_stamp"])
 
         # Parameters at run time: a refused value keeps the old one; a failed plan keeps the last plan
