@@ -42,6 +42,7 @@ from pathlib import Path
 
 import numpy as np
 import yaml
+from scipy.ndimage import median_filter
 
 from mal_planner.campaign.traffic import TMA, TrafficProfile
 from mal_planner.geo.frame import GeoFrame
@@ -72,6 +73,9 @@ MAX_SAMPLE_GAP_S = 20.0
 SLOPE_WINDOW_S = 10.0
 """The flight-path angle is the climb over +-this (altitudes come in 25-ft steps: a 20-s slope is good to 0.1 deg
 at 200 kt)."""
+ALTITUDE_MEDIAN_SAMPLES, ALTITUDE_OUTLIER_FT = 9, 500.0
+"""A sample whose altitude is this far from the median of the 9 around it is an ADS-B glitch (9 s at one sample a
+second: a 3,000-ft/min descent moves 450 ft, less than the outlier distance); it is dropped."""
 FLIGHT_GAP = "10 min"
 """A flight ends where its samples stop for this long (traffic's iteration)."""
 
@@ -155,9 +159,13 @@ def tracks_from_frame(df) -> list[Track]:
         t = g["timestamp"].astype("int64").to_numpy() / 1e9 if hasattr(g["timestamp"], "dt") else _clean(g["timestamp"])
         key = key if isinstance(key, tuple) else (key,)
         callsign = str(g["callsign"].iloc[0]) if "callsign" in g.columns else str(key[0])
-        out.append(Track("_".join(map(str, key)), callsign.strip(), _clean(t), _clean(g["latitude"]),
-                         _clean(g["longitude"]), _clean(g["altitude"]), _clean(g["groundspeed"]),
-                         _clean(g["track"])))
+        alt = _clean(g["altitude"])
+        good = np.abs(alt - median_filter(alt, size=ALTITUDE_MEDIAN_SAMPLES, mode="nearest")) <= ALTITUDE_OUTLIER_FT
+        if good.sum() < 2:
+            continue
+        out.append(Track("_".join(map(str, key)), callsign.strip(), _clean(t)[good], _clean(g["latitude"])[good],
+                         _clean(g["longitude"])[good], alt[good], _clean(g["groundspeed"])[good],
+                         _clean(g["track"])[good]))
     return out
 
 
@@ -449,13 +457,24 @@ def write_radar_bag(sel: Selection, path: Path, before_s: float, rate_hz: float 
     return write_bag(path, topics, radar_messages(sel, sel.moment_s - before_s, sel.moment_s, rate_hz))
 
 
-def write_tracks_csv(sel: Selection, path: Path) -> Path:
-    """The kept aircraft's real tracks from the moment to their landing: callsign, t_s (from the moment), lat, lon,
-    alt_ft (calibrated), and x, y, z in the runway frame (nm)."""
+TRACK_CSV_STEP_S = 4.0
+"""The tracks CSV keeps one sample every this many seconds (a 250-kt aircraft flies 0.28 nm: a line at figure
+scale)."""
+
+
+def write_tracks_csv(sel: Selection, path: Path, step_s: float = TRACK_CSV_STEP_S) -> Path:
+    """The kept aircraft's real tracks from the moment to their threshold, a sample every ``step_s``: callsign,
+    t_s (from the moment), lat, lon, alt_ft (calibrated), and x, y, z in the runway frame (nm)."""
     rows = ["callsign,t_s,lat,lon,alt_ft,x_nm,y_nm,z_nm"]
     for a in sel.kept:
         tr = a.track
-        keep = (tr.t >= sel.moment_s) & (tr.t <= tr.landing.time_s + 30.0)
+        keep = (tr.t >= sel.moment_s) & (tr.t <= tr.landing.time_s)
+        picked = np.zeros_like(keep)
+        last = -math.inf
+        for k in np.flatnonzero(keep):
+            if tr.t[k] - last >= step_s or k == np.flatnonzero(keep)[-1]:
+                picked[k], last = True, tr.t[k]
+        keep = picked
         alt = tr.alt_ft[keep] + sel.altitude_offset_ft
         p = sel.runway.frame.to_local(tr.lat[keep], tr.lon[keep], alt)
         for t, la, lo, h, (x, y, z) in zip(tr.t[keep], tr.lat[keep], tr.lon[keep], alt, p, strict=True):
