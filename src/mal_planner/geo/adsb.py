@@ -42,12 +42,13 @@ from pathlib import Path
 
 import numpy as np
 import yaml
+from pymap3d.vincenty import vdist
 from scipy.ndimage import median_filter
 
 from mal_planner.campaign.traffic import TMA, TrafficProfile
 from mal_planner.geo.frame import GeoFrame
 from mal_planner.geo.runways import Runway, UnknownRunwayError, runway, runways
-from mal_planner.units import ft_to_nm, kt_to_nm_per_s, nm_to_ft
+from mal_planner.units import ft_to_m, ft_to_nm, kt_to_nm_per_s, nm_to_ft
 
 log = logging.getLogger("mal_planner.geo.adsb")
 
@@ -248,6 +249,14 @@ def altimeter_offset_ft(tracks: Iterable[Track]) -> float:
     return float(np.median(diffs))
 
 
+def flight_path_angle_deg(track: Track, t: float) -> float:
+    """The flight-path angle at ``t`` (deg, at the aircraft: climb over the geodesic distance flown) over
+    +-:data:`SLOPE_WINDOW_S`."""
+    a, b = track.interp(t - SLOPE_WINDOW_S), track.interp(t + SLOPE_WINDOW_S)
+    distance_m, _ = vdist(float(a["lat"]), float(a["lon"]), float(b["lat"]), float(b["lon"]))
+    return math.degrees(math.atan2(ft_to_m(float(b["alt_ft"]) - float(a["alt_ft"])), float(distance_m)))
+
+
 def utc_seconds(text: str) -> float:
     """ISO 8601 time (``2021-10-07T12:30Z``, ``2021-10-07 12:30:00+00:00``; no zone: UTC) -> s since the epoch."""
     value = datetime.fromisoformat(text.strip().replace("Z", "+00:00").replace("z", "+00:00"))
@@ -337,10 +346,7 @@ def select_arrivals(tracks: list[Track], rw: Runway, moment_s: float, area: Area
             skipped.append((callsign, f"at {nm_to_ft(float(p[2])):.0f} ft above the threshold: outside the terminal "
                                       f"area's 0-{nm_to_ft(area.ceiling_nm):.0f} ft"))
             continue
-        before, after = tr.interp(moment_s - SLOPE_WINDOW_S), tr.interp(moment_s + SLOPE_WINDOW_S)
-        a, b = (frame.to_local(float(q["lat"]), float(q["lon"]), float(q["alt_ft"]) + offset)
-                for q in (before, after))
-        gamma = math.degrees(math.atan2(b[2] - a[2], float(np.hypot(*(b[:2] - a[:2])))))
+        gamma = flight_path_angle_deg(tr, moment_s)
         conflict = next((k for k in kept if _too_close(p, k.local, separation_nm, vertical_ft)), None)
         if conflict is not None:
             skipped.append((callsign, f"{np.linalg.norm(p - conflict.local):.2f} nm from {conflict.callsign} "
@@ -395,7 +401,7 @@ def header_lines(sel: Selection, source: str, command: str) -> list[str]:
              f"  {command}",
              "Runway threshold and course: X-Plane apt.dat 2013.10 via bluesky-navdata 1.0.0 "
              "(mal_planner.geo.runways).",
-             f"Altitudes: recorded barometric altitude + {sel.altitude_offset_ft:.0f} ft (calibrated on the "
+             f"Altitudes: recorded barometric altitude {sel.altitude_offset_ft:+.1f} ft (calibrated on the "
              f"recording's landings: {THRESHOLD_CROSSING_HEIGHT_FT:.0f} ft over the threshold).",
              "Speeds are ground speeds at the moment (the planner flies constant speed, without wind).",
              "Real landings (s after the moment): " + ", ".join(
@@ -441,10 +447,7 @@ def local_state(frame: GeoFrame, track: Track, t: float, offset_ft: float) -> np
     """The planner state (x, y, z, gamma, heading) of a track at ``t`` (nm, rad)."""
     s = track.interp(t)
     lat, lon, alt = float(s["lat"]), float(s["lon"]), float(s["alt_ft"]) + offset_ft
-    a, b = (track.interp(t + dt) for dt in (-SLOPE_WINDOW_S, SLOPE_WINDOW_S))
-    pa, pb = (frame.to_local(float(q["lat"]), float(q["lon"]), float(q["alt_ft"]) + offset_ft) for q in (a, b))
-    gamma_deg = math.degrees(math.atan2(pb[2] - pa[2], float(np.hypot(*(pb[:2] - pa[:2])))))
-    heading, gamma = frame.direction_to_local(lat, lon, float(s["track_deg"]), gamma_deg)
+    heading, gamma = frame.direction_to_local(lat, lon, float(s["track_deg"]), flight_path_angle_deg(track, t))
     return np.array([*frame.to_local(lat, lon, alt), gamma, heading])
 
 
