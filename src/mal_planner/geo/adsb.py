@@ -259,7 +259,10 @@ def flight_path_angle_deg(track: Track, t: float) -> float:
 
 def utc_seconds(text: str) -> float:
     """ISO 8601 time (``2021-10-07T12:30Z``, ``2021-10-07 12:30:00+00:00``; no zone: UTC) -> s since the epoch."""
-    value = datetime.fromisoformat(text.strip().replace("Z", "+00:00").replace("z", "+00:00"))
+    try:
+        value = datetime.fromisoformat(text.strip().replace("Z", "+00:00").replace("z", "+00:00"))
+    except ValueError:
+        raise ValueError(f"time {text!r} is not ISO 8601 (e.g. 2021-10-07T14:43Z)") from None
     if value.tzinfo is None:
         value = value.replace(tzinfo=timezone.utc)
     return value.timestamp()
