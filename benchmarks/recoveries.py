@@ -12,7 +12,7 @@ import re
 from collections import Counter
 from pathlib import Path
 
-NO_PLAN = re.compile(r"sequential: (\S+) found no plan \((\w+)\)")
+NO_PLAN = re.compile(r"sequential: (\S+) found no (?:accurate )?plan \((\w+)")
 RECOVERY = re.compile(r"sequential: (\S+): recovery '([^']+)' (worked|failed)")
 FALLBACK = re.compile(r"trying the next fallback")
 

@@ -300,3 +300,24 @@ def test_published_controls_follow_a_sharply_bending_control() -> None:
     assert worst_midpoint_miss(dense) <= 1e-5
     assert np.all(np.isin(plain, dense)) and np.all(np.diff(dense) > 0)
     assert len(dense) < 4 * len(plain)  # samples only where the controls bend
+
+
+FAR_FROM_CONVERGED = generated("{x: [-4.5, 4.5], y: [0.0, 11.0], z: [0.0, 0.5]}", """aircraft:
+  - {callsign: T01, position: [0.2324, 6.1661, 0.2671], flight_path_angle_deg: 0.0, heading_deg: -95.7,
+     speed: 0.03653, landing_time: 189.9}
+  - {callsign: T02, position: [1.7515, 6.0545, 0.2496], flight_path_angle_deg: 0.0, heading_deg: -148.1,
+     speed: 0.03688, landing_time: 208.4}
+obstacles:
+  - {type: wall_with_hole, name: wall, axis: y, position: 3.407, thickness: 0.001,
+     span: {x: [-4.5, 4.5], z: [0.0, 0.5]}, hole: {x: [-1.162, 0.184], z: [0.117, 0.22]}, p: 50}
+""")
+
+
+def test_a_plan_kept_far_above_the_mesh_tolerance_is_recovered_from() -> None:
+    """T02's refined mesh found no solution, and its plan at mesh error 1.5e-2 (tolerance 1e-5) was kept: flown,
+    its controls went 0.44 nm off and through the wall (campaign traffic-0131 at thesis size). Such a plan is
+    now recovered from like a failed one; another guess gives one that verifies."""
+    sc = scenario_from_text(FAR_FROM_CONVERGED)
+    result = Planner(PlanOptions(seed=0, landing=LandingOptions(strategy="sequential"))).plan(sc, reuse=False)
+    assert result.verified, result.failure
+    assert [(r.callsign, r.success) for r in result.landing.recoveries][-1] == ("T02", True)

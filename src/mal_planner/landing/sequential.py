@@ -63,6 +63,13 @@ before it (the joint NLP of everyone is the pipeline's last resort):
 LATER_BY_SPACINGS = (0.5, 1.0, 2.0)
 """The delays the recovery 'later landing' tries, in landing spacings."""
 
+INACCURATE_ERROR = 100.0
+"""A plan whose mesh refinement stopped (a refined mesh found no solution) at an error estimate more than this
+many times the mesh tolerance is recovered from like a failed one. The hp error estimate falls by one or more
+orders per mesh iteration, so two orders above the tolerance is a mesh still far from resolving the path: in a
+thesis-size campaign two plans kept at 1.5e-2 and 2.3e-2 (tolerance 1e-5) flew 0.44 and 1.2 nm off when
+re-integrated. Plans that stop just above the tolerance (1.04e-5 was seen) are kept; the verification judges."""
+
 
 @dataclass
 class Recovery:
@@ -223,8 +230,14 @@ class SequentialOptimizer:
                          part.status)
                 kept_parts.append(kept)
                 part = kept
-            if not part.success and meshes is None:
-                log.warning("sequential: %s found no plan (%s); trying to recover", guess.callsign, part.status)
+            inaccurate = meshes is None and self._inaccurate(part)
+            if (not part.success or inaccurate) and meshes is None:
+                if inaccurate:
+                    log.warning("sequential: %s found no accurate plan (Mesh_Not_Converged: error %.1e, over %gx the "
+                                "tolerance); trying to recover", guess.callsign, part.solution.max_error,
+                                INACCURATE_ERROR)
+                else:
+                    log.warning("sequential: %s found no plan (%s); trying to recover", guess.callsign, part.status)
                 step = self._recover(scenario, order, i, parts, flown, recoveries, deadline, options)
                 if step == "swap":  # the previous aircraft is planned again, after this one
                     parts.pop()
@@ -246,6 +259,12 @@ class SequentialOptimizer:
         result = _combine(parts, len(order), self.layout, wall, solved=solved)
         result.recoveries = recoveries
         return result
+
+    def _inaccurate(self, part: LandingResult) -> bool:
+        """A solved plan whose mesh refinement stopped far above the tolerance (:data:`INACCURATE_ERROR`)."""
+        sol = part.solution
+        return (part.success and sol is not None and not sol.mesh_converged
+                and sol.max_error > INACCURATE_ERROR * self.options.mesh_tol)
 
     @staticmethod
     def _landed(part: LandingResult) -> float:
@@ -275,7 +294,8 @@ class SequentialOptimizer:
                 return None
             t0 = time.perf_counter()
             outcome = run()
-            ok = outcome == "swap" or (isinstance(outcome, LandingResult) and outcome.success)
+            ok = outcome == "swap" or (isinstance(outcome, LandingResult) and outcome.success
+                                       and not self._inaccurate(outcome))
             recoveries.append(Recovery(cs, name, ok, time.perf_counter() - t0))
             log.info("sequential: %s: recovery '%s' %s (%.1f s)", cs, name, "worked" if ok else "failed",
                      time.perf_counter() - t0)

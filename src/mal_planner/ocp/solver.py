@@ -173,6 +173,7 @@ class OCPSolver:
         sol: OCPSolution | None = None
         best: OCPSolution | None = None  # the successful iteration with the smallest mesh error
         best_iteration = -1
+        best_bulging = 0
         src: GuessArg = guess
         converged = False
         previous: list = [None] * len(cur)  # per phase, the segment errors of the last iteration
@@ -237,7 +238,7 @@ class OCPSolver:
             if not res.success:
                 break
             if best is None or max_err <= best.max_error:
-                best, best_iteration = sol, it
+                best, best_iteration, best_bulging = sol, it, n_bulging
             if max_err <= opt.mesh_tol and not n_bulging:
                 converged = True
                 break
@@ -262,10 +263,12 @@ class OCPSolver:
             # A later mesh iteration failed, or the refinement stopped above the tolerance: the best
             # successful iteration is the answer; its accuracy is reported, and the caller's independent
             # checks decide whether it is good enough.
-            log.warning("mesh refinement stopped at error %.2e (tolerance %.0e); keeping mesh iteration %d",
-                        best.max_error, opt.mesh_tol, best_iteration)
+            # Not converged means the error is above the tolerance or segments still pass the bounds.
+            past = f", {best_bulging} segments past the bounds" if best_bulging else ""
+            log.warning("mesh refinement stopped at error %.2e (tolerance %.0e%s); keeping mesh iteration %d",
+                        best.max_error, opt.mesh_tol, past, best_iteration)
             sol = best
-            sol.status = f"{sol.status} (mesh error {sol.max_error:.1e} > {opt.mesh_tol:.0e})"
+            sol.status = f"{sol.status} (mesh error {sol.max_error:.1e}, tolerance {opt.mesh_tol:.0e}{past})"
         sol.mesh_history = history
         sol.iterations = total_iter
         sol.solve_time = total_time
