@@ -174,7 +174,8 @@ def test_replay_publishes_bag(tmp_path: Path, backend_env: dict[str, str]) -> No
         topics = ["/radar/tracks", *(f"/aircraft/{cs}/state" for cs in ("A1", "A2", "A3"))]
         got = {t: [] for t in topics}
         for topic in topics:
-            node.create_subscription(STATE, topic, got[topic].append, 10)
+            # Depth for every message: a listener that falls behind on a loaded machine must not lose any.
+            node.create_subscription(STATE, topic, got[topic].append, 3 * N_STEPS)
         proc = _start(backend_env, "replay", str(bag), "--rate", "10", "--wait-for-subscribers", "15")
         deadline = time.monotonic() + 30
         while proc.poll() is None and time.monotonic() < deadline:

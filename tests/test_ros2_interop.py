@@ -11,6 +11,7 @@ from __future__ import annotations
 import json
 import os
 import re
+import subprocess
 import time
 from pathlib import Path
 
@@ -120,9 +121,19 @@ def test_ros2_param_list_get_set_dump(planner: Planner) -> None:
 
 
 def test_ros2_topic_echo_rosout(planner: Planner) -> None:
-    out = ros2(["topic", "echo", "/rosout", "rcl_interfaces/msg/Log", *LATCHED, "--once", "--no-daemon"],
-               planner.ros, timeout=30).stdout
-    assert "name: planner" in out and "msg:" in out, out
+    """/rosout keeps a line 10 s (its lifespan, as rclpy's): the planner logs a line (a parameter set) while the
+    echo listens, not only before it (a loaded machine starts the echo later than that)."""
+    echo = subprocess.Popen(["timeout", "-k", "2", "60", "ros2", "topic", "echo", "/rosout", "rcl_interfaces/msg/Log",
+                             *LATCHED, "--once", "--no-daemon"], env=planner.ros, stdout=subprocess.PIPE,
+                            stderr=subprocess.PIPE, text=True)
+    try:
+        deadline = time.monotonic() + 60
+        while echo.poll() is None and time.monotonic() < deadline:
+            ros2(["param", "set", "/planner", "replan_period_s", "0.0", "--no-daemon"], planner.ros)
+        out, err = echo.communicate(timeout=10)
+    finally:
+        echo.kill()
+    assert "name: planner" in out and "msg:" in out, (out, err)
 
 
 def test_ros2_service_call_plan_and_type_description(planner: Planner) -> None:
