@@ -2,9 +2,12 @@
 
 The thesis's point-mass, constant-speed model ("State-space dynamic equations", chapter 2):
 
-    x' = V cos(gamma) cos(phi)      gamma' = g/V (n_v - cos(gamma))
-    y' = V cos(gamma) sin(phi)      phi'   = g/V n_h / cos(gamma)
+    x' = V cos(gamma) cos(phi) + w_x      gamma' = g/V (n_v - cos(gamma))
+    y' = V cos(gamma) sin(phi) + w_y      phi'   = g/V n_h / cos(gamma)
     z' = V sin(gamma)
+
+with an optional horizontal wind (w_x, w_y) (0 in the thesis): V is the airspeed, gamma and phi the air-relative
+flight-path angle and heading, and the ground velocity is the air velocity plus the wind.
 
 States are (x, y, z, gamma, phi) in nm and rad, controls (n_h, n_v) are load factors. Models live in a
 registry keyed by name, so a scenario can give each aircraft its own model (e.g. a slower rotorcraft
@@ -13,6 +16,7 @@ with other limits) without touching the planner.
 
 from __future__ import annotations
 
+import math
 from collections.abc import Sequence
 from dataclasses import dataclass, fields, replace
 from typing import Any, ClassVar
@@ -56,6 +60,10 @@ class DynamicsModel:
     speed: float
     """Constant airspeed V in nm/s."""
     gravity: float = GRAVITY_NM_S2
+    wind_x: float = 0.0
+    """Wind velocity along x in nm/s (the air mass's motion over the ground; 0: still air)."""
+    wind_y: float = 0.0
+    """Wind velocity along y in nm/s."""
     default_limits: ClassVar[ControlLimits] = ControlLimits()
     name: ClassVar[str] = "point_mass"
     state_names: ClassVar[tuple[str, ...]] = STATE_NAMES
@@ -79,8 +87,8 @@ class DynamicsModel:
         return _stack(
             xp,
             [
-                v * cos_gamma * xp.cos(phi),
-                v * cos_gamma * xp.sin(phi),
+                v * cos_gamma * xp.cos(phi) + self.wind_x,
+                v * cos_gamma * xp.sin(phi) + self.wind_y,
                 v * xp.sin(gamma),
                 g / v * (n_v - cos_gamma),
                 g / v * n_h / cos_gamma,
@@ -100,6 +108,73 @@ class DynamicsModel:
         k3 = self.rhs(state + h / 2 * k2, control)
         k4 = self.rhs(state + h * k3, control)
         return state + h / 6 * (k1 + 2 * k2 + 2 * k3 + k4)
+
+    @property
+    def wind(self) -> np.ndarray:
+        """(w_x, w_y) in nm/s."""
+        return np.array([self.wind_x, self.wind_y], dtype=float)
+
+    @property
+    def has_wind(self) -> bool:
+        return bool(np.any(np.asarray(self.wind_x) != 0.0) or np.any(np.asarray(self.wind_y) != 0.0))
+
+    def heading_for_track(self, track: Any, gamma: Any = 0.0) -> Any:
+        """Air heading whose ground track is ``track`` (rad) in this wind: the track less the wind-correction
+        (crab) angle. Equal to ``track`` in still air; NumPy only."""
+        v_h = self.speed * np.cos(gamma)
+        cross = -self.wind_x * np.sin(track) + self.wind_y * np.cos(track)
+        return track - np.arcsin(np.clip(cross / v_h, -1.0, 1.0))
+
+    def ground_speed_along(self, track: Any, gamma: Any = 0.0) -> Any:
+        """Horizontal ground speed (nm/s) flying the ground track ``track`` (rad) in this wind (the wind
+        triangle); <= 0 where the wind is too strong to make way along it. NumPy only."""
+        v_h = self.speed * np.cos(gamma)
+        along = self.wind_x * np.cos(track) + self.wind_y * np.sin(track)
+        cross = -self.wind_x * np.sin(track) + self.wind_y * np.cos(track)
+        return along + np.sqrt(np.maximum(v_h**2 - cross**2, 0.0))
+
+    def with_wind(self, wind_x: Any, wind_y: Any) -> DynamicsModel:
+        """This model in another wind (nm/s)."""
+        return replace(self, wind_x=wind_x, wind_y=wind_y)
+
+    @property
+    def fastest_ground_speed(self) -> float:
+        """An upper bound of the ground speed (nm/s): V + |w| (V in still air)."""
+        return float(self.speed + np.hypot(self.wind_x, self.wind_y))
+
+    def ground_track(self, gamma: float, heading: float) -> float:
+        """Ground track (rad) of the air-relative (gamma, heading); ``heading`` itself in still air."""
+        if not self.has_wind:
+            return heading
+        v_h = self.speed * math.cos(gamma)
+        return math.atan2(v_h * math.sin(heading) + self.wind_y, v_h * math.cos(heading) + self.wind_x)
+
+    def _ground_speed_3d(self, unit: np.ndarray) -> np.ndarray:
+        """Ground speed s along unit ground directions (rows (..., 3)): |s d - w| = V, the wind horizontal."""
+        along = unit[..., 0] * self.wind_x + unit[..., 1] * self.wind_y
+        return along + np.sqrt(along**2 + self.speed**2 - self.wind_x**2 - self.wind_y**2)
+
+    def air_distance(self, segments: np.ndarray) -> np.ndarray:
+        """Distance (nm) flown through the air along straight ground segments (rows (..., 3)): their length x V /
+        the ground speed along them, so that the time to fly one is this / V. Their length in still air."""
+        seg = np.asarray(segments, dtype=float)
+        length = np.linalg.norm(seg, axis=-1) if seg.ndim > 1 else np.linalg.norm(seg)  # the callers' own norms
+        if not self.has_wind:
+            return length
+        unit = seg / np.where(length > 0.0, length, 1.0)[..., None]
+        return length * self.speed / self._ground_speed_3d(unit)
+
+    def air_angles(self, segments: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """Air-relative (gamma, heading) (rad) that fly straight along ground segments (rows (..., 3), non-zero):
+        the crabbed heading, and the flight-path angle of the air velocity. The segments' own angles in still
+        air."""
+        seg = np.asarray(segments, dtype=float)
+        length = np.linalg.norm(seg, axis=-1)
+        if not self.has_wind:
+            return np.arcsin(np.clip(seg[..., 2] / length, -1.0, 1.0)), np.arctan2(seg[..., 1], seg[..., 0])
+        unit = seg / length[..., None]
+        air = self._ground_speed_3d(unit)[..., None] * unit - np.array([self.wind_x, self.wind_y, 0.0])
+        return np.arcsin(np.clip(air[..., 2] / self.speed, -1.0, 1.0)), np.arctan2(air[..., 1], air[..., 0])
 
     def level_flight_control(self, gamma: Any = 0.0) -> np.ndarray:
         """Controls that hold gamma and heading constant (n_h = 0, n_v = cos gamma)."""

@@ -125,6 +125,8 @@ class Gate:
     """Bounds of the hole along the two other axes, in increasing axis order."""
     flight_path_angle: float
     heading: float
+    """The ground track to pass on (rad); in a wind the aircraft's heading there is crabbed (see
+    :meth:`mal_planner.scenario.Aircraft.heading_for_track`)."""
 
     @property
     def other_axes(self) -> tuple[int, int]:

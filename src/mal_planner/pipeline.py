@@ -94,7 +94,7 @@ class PlanResult:
             return self.landing.trajectories
         out = []
         for tr in self.initial.trajectories:
-            t, states = tr.sample(1.0)
+            t, states = tr.sample(1.0, self.scenario.aircraft_by_callsign(tr.callsign).dynamics)
             out.append(Trajectory(tr.callsign, t, states))
         return out
 

@@ -13,7 +13,8 @@ from pathlib import Path
 import numpy as np
 
 from mal_planner.pipeline import PlanResult
-from mal_planner.units import nm_to_ft
+from mal_planner.scenario import Scenario
+from mal_planner.units import nm_per_s_to_kt, nm_to_ft
 
 SCHEMA = "mal-planner/plan"
 SCHEMA_VERSION = 1
@@ -29,7 +30,22 @@ def _scenario(result: PlanResult) -> dict:
     return {"name": sc.name, "source": sc.source, "airspace": sc.airspace.tolist(),
             "runway": sc.runway_state.tolist(), "separation_nm": sc.separation_nm,
             "obstacles": [asdict(ob) for ob in sc.obstacles], "gates": [asdict(g) for g in sc.gates],
-            "geo_frame": None if sc.geo_frame is None else sc.geo_frame.describe()}
+            "geo_frame": None if sc.geo_frame is None else sc.geo_frame.describe(), "wind": wind_summary(sc)}
+
+
+def wind_summary(sc: Scenario) -> dict:
+    """The scenario's wind: speed (kt), where it blows from (local heading; true direction on the Earth, deg) and
+    the local vector (nm/s); directions None in still air."""
+    wx, wy = (float(v) for v in sc.wind)
+    speed = math.hypot(wx, wy)
+    from_local = from_true = None
+    if speed > 0.0:  # rounded to 1e-9 deg: the vector's round-off (cos 90 deg = 6e-17) is not a direction
+        from_local = round(math.degrees(math.atan2(-wy, -wx)), 9) + 0.0
+        if sc.geo_frame is not None:
+            towards, _ = sc.geo_frame.direction_to_geodetic(np.zeros(3), math.atan2(wy, wx), 0.0)
+            from_true = round((towards + 180.0) % 360.0, 9) % 360.0
+    return {"speed_kt": float(nm_per_s_to_kt(speed)), "from_heading_deg": from_local, "from_deg": from_true,
+            "vector_nm_s": [wx, wy]}
 
 
 def _trajectory(result: PlanResult, columns: dict) -> dict:
@@ -143,6 +159,11 @@ def validation_report(result: PlanResult) -> str:
     for cs in result.order:
         g = result.landing.gate_times[cs]
         lines.append(f"| {cs} | {'-' if g is None else f'{g:.2f}'} | {result.landing.landing_times[cs]:.2f} |")
+    wind = wind_summary(result.scenario)
+    if wind["speed_kt"] > 0.0:
+        true = "" if wind["from_deg"] is None else f", {wind['from_deg']:.1f} deg true"
+        lines += ["", f"Wind: {wind['speed_kt']:.1f} kt from heading {wind['from_heading_deg']:.1f} deg{true} "
+                      "(gate and runway headings are ground tracks: the aircraft crab)"]
     lines += ["", f"Objective: {result.landing.objective:.6f}", "", "## Separation (minimum over the flight)", "",
               "| pair | minimum distance (nm) | at t (s) |", "|---|---|---|"]
     lines += [f"| {p.pair} | {p.min_distance_nm:.4f} | {p.at_time_s:.2f} |" for p in rep.pairs]

@@ -9,6 +9,9 @@ characteristic values of a scenario fix that:
 * the **time** ``T = L / V`` of that aircraft: the time it takes to turn one radian (thesis: 7.55 s;
   terminal area: 13.7 s).
 
+Both come from the airspeed V, also in a wind (``wind:``): turns are flown through the air mass, which only
+drifts them, so the radius and the rate of a turn do not depend on the wind.
+
 The NLP is scaled by them (positions in L, times in T), and the numbers that were tuned in the thesis's
 units are multiples of them: the table in the README ("Real terminal-area scale") lists each constant, its
 former value and its rule. :attr:`Scales.accuracy_nm` is the path accuracy the planner works to: the

@@ -328,6 +328,38 @@ class SeparationConfig(_Strict):
         return self
 
 
+class WindConfig(_Strict):
+    """A constant horizontal wind: the air mass's velocity over the ground (0: still air, as in the thesis).
+
+    Give ``speed_kt`` with ``from_deg`` (the direction it blows from, clockwise from true north, as METARs do;
+    needs a runway on the Earth) or ``from_heading_deg`` (the local heading it blows from, in the convention of
+    the aircraft's ``heading_deg``). The planner's aircraft then fly at their airspeed through the moving air:
+    their ground speed is airspeed + wind, and gates and the runway are passed on their ground track, crabbed.
+    """
+
+    speed_kt: float = Field(ge=0.0, le=200.0)
+    from_deg: float | None = Field(None, ge=0.0, le=360.0)
+    from_heading_deg: float | None = Field(None, ge=-360.0, le=360.0)
+
+    @model_validator(mode="after")
+    def _one_direction(self) -> WindConfig:
+        if (self.from_deg is None) == (self.from_heading_deg is None):
+            raise ValueError("give the wind's direction as from_deg (true, needs a runway on the Earth) or "
+                             "from_heading_deg (local), exactly one of them")
+        return self
+
+    def velocity(self, frame: GeoFrame | None) -> tuple[float, float]:
+        """(w_x, w_y) in nm/s in the local frame."""
+        speed = kt_to_nm_per_s(self.speed_kt)
+        if self.from_heading_deg is not None:
+            towards = math.radians(self.from_heading_deg) + math.pi
+        else:
+            assert frame is not None
+            # blowing towards from_deg + 180 (true); the local heading of that track at the threshold
+            towards = frame.heading_of_true_track(self.from_deg + 180.0)
+        return speed * math.cos(towards), speed * math.sin(towards)
+
+
 class SequencingConfig(_Strict):
     """How the landing order and the free landing times are decided (:mod:`mal_planner.sequencing`)."""
 
@@ -358,6 +390,14 @@ class ScenarioConfig(_Strict):
     separation: SeparationConfig = SeparationConfig()
     sequencing: SequencingConfig = SequencingConfig()
     limits: LimitsConfig = LimitsConfig()
+    wind: WindConfig | None = None
+
+    @model_validator(mode="after")
+    def _wind_direction_needs_north(self) -> ScenarioConfig:
+        if self.wind is not None and self.wind.from_deg is not None and not isinstance(self.runway, GeoRunwayConfig):
+            raise ValueError("wind.from_deg: a true wind direction needs the runway on the Earth (runway: {threshold: "
+                             "..., course_deg}); in a local file give from_heading_deg")
+        return self
 
     @model_validator(mode="after")
     def _unique_callsigns(self) -> ScenarioConfig:
@@ -406,6 +446,13 @@ class Aircraft:
     def position(self) -> np.ndarray:
         return self.state0[:3]
 
+    def heading_for_track(self, track: float, gamma: float) -> float:
+        """The state (air-relative) heading that flies the ground track ``track`` at the flight-path angle ``gamma``
+        (rad): the track itself in still air, crabbed into the wind otherwise. Gates and the runway give tracks."""
+        if not self.dynamics.has_wind:
+            return track
+        return float(self.dynamics.heading_for_track(track, gamma))
+
 
 @dataclass(frozen=True)
 class Scenario:
@@ -415,7 +462,8 @@ class Scenario:
     description: str
     aircraft: tuple[Aircraft, ...]
     runway_state: np.ndarray
-    """(x, y, z, gamma, heading) at touchdown."""
+    """(x, y, z, gamma, heading) at touchdown; the heading is the runway's course, a ground track (see
+    :meth:`runway_heading`)."""
     airspace: np.ndarray
     """(3, 2) array of [min, max] per axis."""
     obstacles: tuple[Superquadric, ...]
@@ -436,11 +484,25 @@ class Scenario:
     """The wake-turbulence table between successive landings (``separation.wake``)."""
     sequencing: SequencingOptions = SequencingOptions()
     """How the order and the free landing times are decided (``sequencing:``)."""
+    wind: tuple[float, float] = (0.0, 0.0)
+    """The constant wind (w_x, w_y) in nm/s in the local frame (``wind:``); every aircraft's model carries it."""
 
     @property
     def separation_radius_nm(self) -> float:
         """Radius of the smallest sphere holding the protected zone: farther apart than this is separated."""
         return math.hypot(self.separation_nm, self.vertical_separation_nm or 0.0)
+
+    def runway_heading(self, aircraft: Aircraft) -> float:
+        """The state heading of ``aircraft`` at touchdown: the runway's course as its ground track (crabbed)."""
+        return aircraft.heading_for_track(float(self.runway_state[4]), float(self.runway_state[3]))
+
+    def final_ground_speed(self, aircraft: Aircraft) -> float:
+        """Ground speed (nm/s) of ``aircraft`` on the final approach (the runway's course and flight-path angle):
+        its airspeed in still air, else the wind triangle's (what a distance on final takes in time)."""
+        if not aircraft.dynamics.has_wind:
+            return aircraft.speed
+        gamma, track = float(self.runway_state[3]), float(self.runway_state[4])
+        return math.hypot(float(aircraft.dynamics.ground_speed_along(track, gamma)), aircraft.speed * math.sin(gamma))
 
     def aircraft_by_callsign(self, callsign: str) -> Aircraft:
         for ac in self.aircraft:
@@ -523,10 +585,14 @@ def build_scenario(config: ScenarioConfig, source: str = "<scenario>") -> Scenar
         else:
             obstacles.append(Superquadric(spec.name, spec.center, spec.semi_axes, spec.p))
     airspace = np.array([config.airspace.x, config.airspace.y, config.airspace.z], dtype=float)
+    wind = (0.0, 0.0) if config.wind is None else config.wind.velocity(frame)
     aircraft = []
     for i, ac in enumerate(config.aircraft):
         state0 = np.array([*ac.position, np.radians(ac.flight_path_angle_deg), np.radians(ac.heading_deg)])
-        dyn = make_dynamics(ac.model, ac.speed, gravity=config.gravity)
+        dyn = make_dynamics(ac.model, ac.speed, gravity=config.gravity, wind_x=wind[0], wind_y=wind[1])
+        if math.hypot(*wind) >= ac.speed * math.cos(state0[3]):
+            raise ScenarioError(source, "wind.speed_kt", f"{config.wind.speed_kt:g} kt is not below aircraft[{i}] "
+                                f"{ac.callsign}'s airspeed: it could not make way against it")
         limits = ac.limits.to_limits() if ac.limits else (
             config.limits.to_limits() if "limits" in config.model_fields_set else dyn.default_limits)
         aircraft.append(Aircraft(ac.callsign, state0, dyn, limits, ac.wake_category, ac.landing_time))
@@ -562,6 +628,7 @@ def build_scenario(config: ScenarioConfig, source: str = "<scenario>") -> Scenar
         config=config,
         source=source,
         geo_frame=frame,
+        wind=wind,
     )
 
 

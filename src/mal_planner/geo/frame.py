@@ -82,6 +82,10 @@ class GeoFrame:
         x, y, z = self._enu_to_local(e, n, u)
         return wrap_angle(math.atan2(y, x)), math.atan2(z, math.hypot(x, y))
 
+    def heading_of_true_track(self, track_deg: float) -> float:
+        """The local heading (rad) of a true track (deg) at the threshold (e.g. a wind's direction)."""
+        return self.direction_to_local(self.lat_deg, self.lon_deg, track_deg, 0.0)[0]
+
     def direction_to_geodetic(self, point, heading: float, gamma: float) -> tuple[float, float]:
         """A local (heading, gamma) in rad at a local point (nm) -> (true track, flight-path angle) in degrees."""
         lat, lon, _ = self.to_geodetic(point)

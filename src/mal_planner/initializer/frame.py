@@ -6,7 +6,8 @@ each other differ by quarter turns about the vertical and by shifts. :class:`Run
 turns the world by the multiple of 90 deg that brings the runway heading nearest to -90 deg (the thesis's
 runway, landing towards -y) and moves the runway threshold to the origin. Quarter turns are signed axis
 permutations, applied exactly (no sine or cosine), so two copies meet in the same numbers up to the
-round-off of the shift.
+round-off of the shift. The wind turns with the world (:meth:`RunwayFrame.vector`); what comes back to the world
+are positions and times only.
 """
 
 from __future__ import annotations
@@ -92,9 +93,16 @@ class RunwayFrame:
                     int(sign * gate.direction), (bounds[0], bounds[1]), gate.flight_path_angle,
                     self.heading(gate.heading))
 
+    def vector(self, vector: tuple[float, float]) -> tuple[float, float]:
+        """A horizontal world vector (e.g. the wind) in the frame (turned, not shifted)."""
+        (ax, sx), (ay, sy) = self._axes()
+        return float(sx * vector[ax]), float(sy * vector[ay])
+
     def _aircraft(self, ac: Aircraft) -> Aircraft:
         state = np.concatenate([self.points(ac.state0[:3]), [ac.state0[3], self.heading(ac.state0[4])]])
-        return replace(ac, state0=state)
+        if not ac.dynamics.has_wind:
+            return replace(ac, state0=state)
+        return replace(ac, state0=state, dynamics=ac.dynamics.with_wind(*self.vector(tuple(ac.dynamics.wind))))
 
     def scenario(self, scenario: Scenario) -> Scenario:
         """``scenario`` seen in the frame (its ``config`` still describes the world)."""
@@ -106,4 +114,5 @@ class RunwayFrame:
             airspace=self._box(scenario.airspace),
             obstacles=tuple(self._superquadric(ob) for ob in scenario.obstacles),
             gates=tuple(self._gate(g) for g in scenario.gates),
+            wind=self.vector(scenario.wind),
         )

@@ -98,13 +98,15 @@ def check_request(scenario: Scenario, gate_margin_nm: float = 0.0) -> None:
         bound = reachable_lower_bound(scenario, ac)
         if ac.landing_time < bound:
             raise InfeasibleRequest(f"{ac.callsign}: landing time {ac.landing_time:g} s is earlier than it can "
-                                    f"reach the runway ({bound:.1f} s at full speed on straight lines)")
+                                    f"reach the runway ({bound:.1f} s at full speed on straight lines"
+                                    f"{' in the wind' if ac.dynamics.has_wind else ''})")
     fixed.sort(key=lambda item: item[0])
     for (ta, a), (tb, b) in itertools.pairwise(fixed):
         if tb - ta < scenario.landing_spacing_s - 1e-9:
             raise InfeasibleRequest(f"{a.callsign} and {b.callsign} land {tb - ta:g} s apart ({ta:g} s, {tb:g} s); "
                                     f"the minimum spacing is {scenario.landing_spacing_s:g} s")
-        wake = wake_spacing_s(scenario.wake, a.wake_category, b.wake_category, b.speed, scenario.separation_nm, 0.0)
+        wake = wake_spacing_s(scenario.wake, a.wake_category, b.wake_category, scenario.final_ground_speed(b),
+                              scenario.separation_nm, 0.0)
         if tb - ta < wake:
             raise InfeasibleRequest(f"{a.callsign} and {b.callsign} land {tb - ta:g} s apart ({ta:g} s, {tb:g} s); "
                                     f"the {scenario.wake} wake minimum {a.wake_category}->{b.wake_category} needs "
@@ -159,9 +161,11 @@ def landing_spacing(scenario: Scenario, leader: Aircraft, follower: Aircraft) ->
     S / V_l + D (1 / V_f - 1 / V_l) between the landings. With one spacing for every pair, a slow aircraft
     behind a fast one through a gate 8.5 nm out needed 103 s, not the 90 s it was given, and no plan existed.
     With ``separation.wake``, also the wake-turbulence minimum of the pair at the follower's speed
-    (:func:`mal_planner.sequencing.wake.wake_spacing_s`).
+    (:func:`mal_planner.sequencing.wake.wake_spacing_s`). The speeds are ground speeds on final
+    (:meth:`~mal_planner.scenario.Scenario.final_ground_speed`: the airspeeds in still air).
     """
-    sep, v_l, v_f = scenario.separation_nm, leader.speed, follower.speed
+    sep = scenario.separation_nm
+    v_l, v_f = scenario.final_ground_speed(leader), scenario.final_ground_speed(follower)
     gap = sep / v_f if v_f >= v_l else sep / v_l + common_approach_nm(scenario) * (1.0 / v_f - 1.0 / v_l)
     wake = wake_spacing_s(scenario.wake, leader.wake_category, follower.wake_category, v_f, sep,
                           scenario.landing_spacing_s)

@@ -16,6 +16,11 @@
    the runway. When no waypoint meets the window, the closest candidate is kept (a warning is logged).
 4. Times follow from the constant speed: t = cumulative length / speed, t = 0 at the start; the
    scheduled landing time is what the optimizer is given.
+
+In a wind (``wind:``) every length that stands for a time is the *air distance* (the time flown x the airspeed,
+:meth:`~mal_planner.dynamics.DynamicsModel.air_distance`): each straight segment is flown at the ground speed
+of the wind triangle along it, and the paths are stretched to the air distance of their scheduled time. The
+waypoint ellipse and the straight-leg proxies of the traffic screening stay geometric (they only rank draws).
 """
 
 from __future__ import annotations
@@ -30,6 +35,7 @@ from dataclasses import dataclass, field, replace
 
 import numpy as np
 
+from mal_planner.dynamics import DynamicsModel
 from mal_planner.initializer.approach import Approach, approach_for
 from mal_planner.initializer.collision import CollisionChecker
 from mal_planner.initializer.frame import RunwayFrame
@@ -78,10 +84,11 @@ class InitialTrajectory:
         t = np.clip(np.asarray(t, dtype=float), 0.0, self.landing_time)
         return np.stack([np.interp(t, self.times, self.waypoints[:, k]) for k in range(3)], axis=-1)
 
-    def sample(self, dt: float) -> tuple[np.ndarray, np.ndarray]:
+    def sample(self, dt: float, dynamics: DynamicsModel | None = None) -> tuple[np.ndarray, np.ndarray]:
         """Times 0, dt, ..., landing_time and states (n, 5): x, y, z, flight-path angle, heading.
 
-        The angles are those of the straight segment being flown: asin(dz/ds) and atan2(dy, dx).
+        The angles are those of the straight segment being flown: asin(dz/ds) and atan2(dy, dx); with the
+        aircraft's ``dynamics`` in a wind, the air-relative ones that fly it (crabbed).
         """
         if dt <= 0:
             raise ValueError(f"dt must be > 0, got {dt}")
@@ -90,9 +97,12 @@ class InitialTrajectory:
         if self.landing_time - t[-1] > 1e-9:
             t = np.append(t, self.landing_time)
         d = np.diff(self.waypoints, axis=0)
-        ds = np.linalg.norm(d, axis=1)
-        gamma = np.arcsin(np.clip(d[:, 2] / ds, -1.0, 1.0))
-        heading = np.arctan2(d[:, 1], d[:, 0])
+        if dynamics is not None and dynamics.has_wind:
+            gamma, heading = dynamics.air_angles(d)
+        else:
+            ds = np.linalg.norm(d, axis=1)
+            gamma = np.arcsin(np.clip(d[:, 2] / ds, -1.0, 1.0))
+            heading = np.arctan2(d[:, 1], d[:, 0])
         seg = np.clip(np.searchsorted(self.times, t, side="right") - 1, 0, len(d) - 1)
         return t, np.column_stack([self.position_at(t), gamma[seg], heading[seg]])
 
@@ -120,14 +130,30 @@ class InitialPlan:
         return [tr.callsign for tr in self.trajectories]
 
 
-def timed_path(path: np.ndarray, speed: float) -> np.ndarray:
-    """Time at each vertex at constant ``speed``: cumulative length / speed, 0 at the first vertex."""
+def air_lengths(dynamics: DynamicsModel, path: np.ndarray) -> np.ndarray:
+    """Air distance (nm) of each segment of the polyline ``path`` (K, 3) (its length in still air); a repeated
+    vertex gives 0."""
+    return dynamics.air_distance(np.diff(np.asarray(path, float), axis=0))
+
+
+def air_path_length(dynamics: DynamicsModel, path: np.ndarray) -> float:
+    """:func:`path_length` in the air: the time to fly ``path`` at the airspeed (its length in still air)."""
+    if not dynamics.has_wind:
+        return path_length(path)
+    return float(np.sum(air_lengths(dynamics, path))) if len(path) > 1 else 0.0
+
+
+def timed_path(path: np.ndarray, speed: float | DynamicsModel) -> np.ndarray:
+    """Time at each vertex at the constant airspeed ``speed`` (or the aircraft's ``dynamics``, whose wind sets the
+    ground speed on each segment): cumulative air distance / airspeed, 0 at the first vertex."""
+    if isinstance(speed, DynamicsModel):
+        return np.concatenate([[0.0], np.cumsum(air_lengths(speed, path))]) / speed.speed
     seg = np.linalg.norm(np.diff(path, axis=0), axis=1)
     return np.concatenate([[0.0], np.cumsum(seg)]) / speed
 
 
-def timed_guess(path: np.ndarray, speed: float, landing_time: float, samples: int = 200) -> tuple[np.ndarray,
-                                                                                                  np.ndarray]:
+def timed_guess(path: np.ndarray, speed: float | DynamicsModel, landing_time: float, samples: int = 200
+                ) -> tuple[np.ndarray, np.ndarray]:
     """Times and positions of a path flown as the optimizer's guess flies it: stretched in time to land at
     ``landing_time`` (see :mod:`mal_planner.landing.guess`), ``samples`` points evenly in time."""
     times = timed_path(path, speed)
@@ -252,7 +278,7 @@ class Sequencer:
             path, wp = self._stretch(scenario, checker, ac, routes[cs], direct[cs], schedule.times[cs], rngs[cs],
                                      scales, traffic)
             tr = self._trajectory(scenario, ac, k, path, wp, direct[cs], schedule.times[cs])
-            traffic.append(timed_guess(path, ac.speed, schedule.times[cs]))
+            traffic.append(timed_guess(path, ac.dynamics, schedule.times[cs]))
             timings[cs] += time.perf_counter() - t0
             log.info("%s: lands %d%s at %.1f s (path %.3f nm, %.1f s%s)", cs, k,
                      {1: "st", 2: "nd", 3: "rd"}.get(k, "th"), tr.scheduled_time, tr.path_length,
@@ -293,12 +319,13 @@ class Sequencer:
         return path
 
     def _polished(self, checker: CollisionChecker, leg1: np.ndarray, leg2: np.ndarray, route: Approach,
-                  rng: np.random.Generator, path: np.ndarray, lo_len: float, hi_len: float) -> np.ndarray:
+                  rng: np.random.Generator, path: np.ndarray, lo_len: float, hi_len: float,
+                  dynamics: DynamicsModel) -> np.ndarray:
         """The two legs of a kept candidate smoothed (the route after them is kept as it is); the candidate as it
-        was if smoothing takes it out of the window."""
+        was if smoothing takes it out of the window (of air distances, see the module docstring)."""
         smooth = remove_repeats(np.vstack([self._polish(checker, leg1, rng),
                                            self._join(checker, self._polish(checker, leg2, rng), route, rng)]))
-        return smooth if lo_len <= path_length(smooth) <= hi_len else path
+        return smooth if lo_len <= air_path_length(dynamics, smooth) <= hi_len else path
 
     def _join(self, checker: CollisionChecker, to_route: np.ndarray, route: Approach,
               rng: np.random.Generator) -> np.ndarray:
@@ -324,7 +351,7 @@ class Sequencer:
         the path of one converging on the same gate) left no feasible plan for the optimizer. ``force``: look
         for a waypoint even where the direct path would do (it did not clear the traffic).
         """
-        v = ac.speed
+        v, dyn = ac.speed, ac.dynamics
         need = scenario.separation_nm + scales.lengths(self.guess_buffer_radii)
 
         # The traffic on one time grid (every half turn time), NaN where an aircraft has landed: a candidate's
@@ -338,7 +365,7 @@ class Sequencer:
         def clearance(path: np.ndarray) -> float:
             if not len(traffic):
                 return math.inf
-            times = timed_path(path, v)
+            times = timed_path(path, dyn)
             times = times * (scheduled / times[-1]) if times[-1] > 0 else times
             mine = np.column_stack([np.interp(grid, times, path[:, c]) for c in range(3)])
             gaps = np.linalg.norm(others - mine[None], axis=2)
@@ -348,7 +375,7 @@ class Sequencer:
         window, margin = scales.seconds(self.window_turn_times), scales.seconds(self.landing_margin_turn_times)
         target = scheduled * v - turns
         lo_len, hi_len = target - window * v, target + window * v
-        direct_len = path_length(direct_path)
+        direct_len = air_path_length(dyn, direct_path)  # lengths that stand for times are air distances
         direct_clear = clearance(direct_path)
         if direct_len >= lo_len - margin * v and not (force and direct_clear < need):  # no detour needed
             if direct_len > hi_len:
@@ -358,7 +385,7 @@ class Sequencer:
                 log.info("%s: the direct path comes %.2f nm close to an earlier aircraft's", ac.callsign,
                          direct_clear)
             return direct_path, None
-        start, goal, tail = ac.position, route.first, route.length
+        start, goal, tail = ac.position, route.first, air_path_length(dyn, route.points)
         onto = (route.points[1] - goal) if len(route.points) > 1 else np.zeros(3)
         res = scales.lengths(self.lattice_radii)
         lo_i = np.ceil((scenario.airspace[:, 0] + 1e-12) / res).astype(np.int64) + 1
@@ -380,8 +407,8 @@ class Sequencer:
             fresh = np.array([tuple(k) not in tried for k in keys.tolist()], bool)
             tried.update(tuple(k) for k in keys.tolist())
             wps = keys[fresh].astype(float) * res
-            d1 = np.linalg.norm(wps - start, axis=1)
-            d2 = np.linalg.norm(goal - wps, axis=1) + tail
+            d1 = dyn.air_distance(wps - start)
+            d2 = dyn.air_distance(goal - wps) + tail
             ok = (d1 + d2 <= hi_len) & (d1 + d2 >= direct_len - 1e-9)  # the straight-line bounds
             if strict:
                 ok &= (d1 > d2) & ((goal - wps) @ onto >= 0.0)
@@ -400,7 +427,7 @@ class Sequencer:
                 try:
                     planned += 1
                     leg1 = self._quick_plan(checker, start, wp, rng)
-                    leg1_len = path_length(leg1)
+                    leg1_len = air_path_length(dyn, leg1)
                     too_long = leg1_len + d2_wp - hi_len  # a lower bound of how far past the window it lands
                     if too_long > 0.0 and best is not None and too_long >= best[0][0]:
                         continue
@@ -409,20 +436,20 @@ class Sequencer:
                     joined = self._join(checker, leg2, route, rng)
                 except PlanningFailed:
                     continue
-                total = leg1_len + path_length(joined)
+                total = leg1_len + air_path_length(dyn, joined)
                 path = remove_repeats(np.vstack([leg1, joined]))
                 miss = max(lo_len - total, total - hi_len, 0.0)
                 clear = clearance(path) if miss == 0.0 else 0.0
                 if miss == 0.0 and clear >= need:
                     log.debug("%s: waypoint after %d draws, %d planned", ac.callsign, len(tried), planned)
-                    return self._polished(checker, leg1, leg2, route, rng, path, lo_len, hi_len), wp
+                    return self._polished(checker, leg1, leg2, route, rng, path, lo_len, hi_len, dyn), wp
                 rank = (miss, -min(clear, need), 0.0)
                 if best is None or rank < best[0]:
                     best = (rank, path, wp, leg1, leg2)
         if best is not None:
             if best[0][0] == 0.0:
-                best = (best[0], self._polished(checker, best[3], best[4], route, rng, best[1], lo_len, hi_len),
-                        best[2])
+                best = (best[0], self._polished(checker, best[3], best[4], route, rng, best[1], lo_len, hi_len,
+                                                dyn), best[2])
             miss, clear = best[0][0], -best[0][1]
             if miss > 0.0:
                 log.warning("%s: no waypoint met the scheduled landing time within %d planner runs; using the "
@@ -438,7 +465,7 @@ class Sequencer:
     def _trajectory(self, scenario: Scenario, ac: Aircraft, order: int, path: np.ndarray,
                     wp: np.ndarray | None, direct_path: np.ndarray, scheduled: float) -> InitialTrajectory:
         path = remove_repeats(path)
-        times = timed_path(path, ac.speed)
+        times = timed_path(path, ac.dynamics)
         wp_index = None
         if wp is not None:
             wp_index = int(np.argmin(np.linalg.norm(path - wp, axis=1)))

@@ -7,10 +7,14 @@ Two numbers per aircraft, both in seconds from the initial states:
   position and heading to the gate (through the best point of the hole, with the gate's heading) and on
   to the runway threshold with the runway's heading, flown with the level-turn radius at the bank limit,
   ``R = V^2 / (g min(tan mu_max, n_h_max))``. When an obstacle-free polyline is known (the initializer's
-  shortest path), the detour it makes around obstacles is added.
+  shortest path), the detour it makes around obstacles is added. In a wind the time is scaled by what the wind
+  does to the straight route start -> hole -> runway (its air distance over its length, the wind triangle on
+  each leg).
 * :func:`reachable_lower_bound`: a *proof* of impossibility: the straight-line distance from the start
   through the nearest point of the hole to the runway, flown at full speed. A fixed landing time below it
-  cannot be met by any trajectory.
+  cannot be met by any trajectory. In a wind: the straight line start -> runway at the best crab (exact: the
+  ground moved is the air path plus the wind's drift), and the legs via the hole at the fastest ground speed
+  V + |w|.
 """
 
 from __future__ import annotations
@@ -66,43 +70,67 @@ def _nearest_hole_point(gate: Gate, point: np.ndarray) -> np.ndarray:
 
 
 def reachable_lower_bound(scenario: Scenario, aircraft: Aircraft) -> float:
-    """A landing time (s) no trajectory can beat: straight lines via the hole at full speed."""
+    """A landing time (s) no trajectory can beat: straight lines via the hole at full speed (in a wind: see the
+    module docstring)."""
     start, goal = aircraft.position, scenario.runway_state[:3]
+    dyn = aircraft.dynamics
+    # Straight to the runway at the best crab: the air path covers (goal - start) - w t, at most V t long.
+    direct = float(dyn.air_distance(goal - start)) / aircraft.speed
     gate = scenario.gates[0] if scenario.gates else None
     if not _ahead_of(gate, aircraft):
-        return float(np.linalg.norm(goal - start)) / aircraft.speed
+        return direct
     assert gate is not None
-    # Each leg is at least the distance from its end to the (convex) hole: a true lower bound.
+    # Each leg is at least the distance from its end to the (convex) hole, flown at most at V + |w|.
     to_hole = float(np.linalg.norm(_nearest_hole_point(gate, start) - start))
     hole_to_goal = float(np.linalg.norm(goal - _nearest_hole_point(gate, goal)))
-    return max(to_hole + hole_to_goal, float(np.linalg.norm(goal - start))) / aircraft.speed
+    return max((to_hole + hole_to_goal) / dyn.fastest_ground_speed, direct)
 
 
-def dubins_path_length(scenario: Scenario, aircraft: Aircraft) -> tuple[float, float]:
-    """Turn-aware horizontal length (nm) to the runway (via the gate) and the straight-line length."""
+def _dubins_route(scenario: Scenario, aircraft: Aircraft) -> tuple[float, float, np.ndarray]:
+    """Turn-aware horizontal length (nm) to the runway (via the gate), the straight-line length and the straight
+    route's points (start, hole point, runway). Poses are ground tracks (the start's: of its ground velocity)."""
     radius = level_turn_radius(aircraft)
     start, goal = aircraft.position, scenario.runway_state[:3]
-    heading0, heading_rw = float(aircraft.state0[4]), float(scenario.runway_state[4])
+    heading0 = aircraft.dynamics.ground_track(float(aircraft.state0[3]), float(aircraft.state0[4]))
+    heading_rw = float(scenario.runway_state[4])
     gate = scenario.gates[0] if scenario.gates else None
     if not _ahead_of(gate, aircraft) or gate is None or gate.axis == 2:
         straight = float(np.linalg.norm(goal - start))
-        return max(dubins_length(start, heading0, goal, heading_rw, radius), straight), straight
-    best, best_straight = math.inf, math.inf
+        turning = max(dubins_length(start, heading0, goal, heading_rw, radius), straight)
+        return turning, straight, np.array([start, goal])
+    best, best_straight, best_route = math.inf, math.inf, np.array([start, goal])
     for h in _hole_points(gate, HOLE_SAMPLES, margin=0.01 * min(hi - lo for lo, hi in gate.bounds)):
         straight = float(np.linalg.norm(h - start) + np.linalg.norm(goal - h))
         length = (dubins_length(start, heading0, h, gate.heading, radius)
                   + dubins_length(h, gate.heading, goal, heading_rw, radius))
         if length < best:
-            best, best_straight = max(length, straight), straight
-    return best, best_straight
+            best, best_straight, best_route = max(length, straight), straight, np.array([start, h, goal])
+    return best, best_straight, best_route
+
+
+def dubins_path_length(scenario: Scenario, aircraft: Aircraft) -> tuple[float, float]:
+    """Turn-aware horizontal length (nm) to the runway (via the gate) and the straight-line length."""
+    length, straight, _ = _dubins_route(scenario, aircraft)
+    return length, straight
+
+
+def wind_factor(aircraft: Aircraft, route: np.ndarray) -> float:
+    """How much longer (> 1) or shorter the wind makes the polyline ``route`` to fly: its air distance over its
+    length (1 in still air)."""
+    dyn = aircraft.dynamics
+    seg = np.diff(np.asarray(route, float), axis=0)
+    seg = seg[np.linalg.norm(seg, axis=1) > 0.0]
+    if not dyn.has_wind or not len(seg):
+        return 1.0
+    return float(np.sum(dyn.air_distance(seg)) / np.sum(np.linalg.norm(seg, axis=1)))
 
 
 def earliest_landing_time(scenario: Scenario, aircraft: Aircraft, detour_nm: float = 0.0) -> float:
     """Turn-aware estimate (s) of the earliest landing; ``detour_nm``: extra length around obstacles."""
-    length, _ = dubins_path_length(scenario, aircraft)
+    length, _, route = _dubins_route(scenario, aircraft)
     climb = abs(float(scenario.runway_state[2] - aircraft.position[2]))
     length = math.hypot(length + max(detour_nm, 0.0), climb)
-    return max(length / aircraft.speed, reachable_lower_bound(scenario, aircraft))
+    return max(length / aircraft.speed * wind_factor(aircraft, route), reachable_lower_bound(scenario, aircraft))
 
 
 def earliest_landing_times(scenario: Scenario, shortest_paths: Mapping[str, np.ndarray] | None = None

@@ -2,7 +2,8 @@
 
 Both give, per aircraft, a time series of the states at constant speed, time-scaled so that the
 aircraft lands at its fixed landing time when the scenario fixes one, and the time at which the
-path crosses the gate plane (which places the phase boundaries).
+path crosses the gate plane (which places the phase boundaries). In a wind each segment is flown at its ground
+speed and its states carry the air-relative (crabbed) angles that fly it.
 """
 
 from __future__ import annotations
@@ -12,6 +13,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from mal_planner.dynamics import DynamicsModel
 from mal_planner.obstacles import Gate
 from mal_planner.scales import level_turn_radius
 from mal_planner.scenario import Aircraft, Scenario
@@ -86,22 +88,24 @@ def _make_guess(aircraft: Aircraft, t: np.ndarray, states: np.ndarray, gate: Gat
     return AircraftGuess(aircraft.callsign, t, states, landing_time, _crossing_time(gate, t, states[:, :3]))
 
 
-def _path_states(points: np.ndarray, speed: float, dt: float) -> tuple[np.ndarray, np.ndarray]:
-    """States along a polyline at constant speed: positions interpolated, angles per segment."""
+def _path_states(points: np.ndarray, dynamics: DynamicsModel, dt: float) -> tuple[np.ndarray, np.ndarray]:
+    """States along a polyline at the constant airspeed: positions interpolated, angles per segment. Time advances
+    with the air distance (the segment's length in still air; its ground speed sets it in a wind) and the angles
+    are the air-relative ones that fly each segment (:meth:`DynamicsModel.air_angles`)."""
+    speed = dynamics.speed
     seg = np.diff(points, axis=0)
     length = np.linalg.norm(seg, axis=1)
     keep = length > 1e-12
-    seg, length = seg[keep], length[keep]
+    seg = seg[keep]
     pts = np.vstack([points[:1], points[1:][keep]])
-    s_nodes = np.concatenate([[0.0], np.cumsum(length)])
+    s_nodes = np.concatenate([[0.0], np.cumsum(dynamics.air_distance(seg))])
     total = s_nodes[-1]
     n = max(int(np.ceil(total / speed / dt)), 2) + 1
     s = np.linspace(0.0, total, n)
     pos = np.column_stack([np.interp(s, s_nodes, pts[:, k]) for k in range(3)])
     which = np.clip(np.searchsorted(s_nodes, s, side="right") - 1, 0, len(seg) - 1)
-    gamma = np.arcsin(np.clip(seg[which, 2] / length[which], -1, 1))
-    heading = np.unwrap(np.arctan2(seg[which, 1], seg[which, 0]))
-    return s / speed, np.column_stack([pos, gamma, heading])
+    gamma, heading = dynamics.air_angles(seg)
+    return s / speed, np.column_stack([pos, gamma[which], np.unwrap(heading[which])])
 
 
 SAMPLES_PER_TURN_TIME = 7.5
@@ -118,7 +122,7 @@ def guess_from_initial_plan(scenario: Scenario, trajectories: Sequence, landing_
     out = []
     for traj, t_land in zip(trajectories, landing_times, strict=True):
         ac = scenario.aircraft_by_callsign(traj.callsign)
-        t, states = _path_states(np.asarray(traj.waypoints, float), ac.speed,
+        t, states = _path_states(np.asarray(traj.waypoints, float), ac.dynamics,
                                  level_turn_radius(ac) / ac.speed / SAMPLES_PER_TURN_TIME)
         out.append(_make_guess(ac, t, states, gate, t_land))
     return out
@@ -132,6 +136,6 @@ def straight_line_guess(scenario: Scenario, callsigns: Sequence[str], landing_ti
     for cs, t_land in zip(callsigns, landing_times, strict=True):
         ac = scenario.aircraft_by_callsign(cs)
         points = np.vstack([ac.position, scenario.runway_state[:3]])
-        t, states = _path_states(points, ac.speed, level_turn_radius(ac) / ac.speed / SAMPLES_PER_TURN_TIME)
+        t, states = _path_states(points, ac.dynamics, level_turn_radius(ac) / ac.speed / SAMPLES_PER_TURN_TIME)
         out.append(_make_guess(ac, t, states, gate, t_land))
     return out

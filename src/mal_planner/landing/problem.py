@@ -5,7 +5,7 @@ airborne in it; path constraints: the thesis's log p-norm obstacle functions (>=
 limit, and the squared distance of every pair that can come close in it (>= separation^2; see
 :mod:`mal_planner.landing.pairs`). Events: initial states (parameters,
 so a replan with new radar states reuses the NLP), continuity of each aircraft between phases (linkage),
-gate conditions (in the hole, level, heading set) at its gate event, runway state at its landing event
+gate conditions (in the hole, level, ground track set) at its gate event, runway state at its landing event
 and the landing times (parameters when fixed, spacing constraints when free). Cost, as in the thesis:
 -sum t_obs + sum of integrals of gamma'^2 + heading'^2; with free landing times, +sum t_land instead
 of -sum t_obs (maximising t_obs is only meaningful when t_land is fixed).
@@ -351,12 +351,13 @@ def _phase(ctx: _Context, k: int, who: list[int], mesh: PhaseMesh, guess_span: t
             for (b_lo, b_hi), ax in zip(gate.bounds, gate.other_axes, strict=True):
                 flo[ax], fhi[ax] = max(flo[ax], b_lo + margins.hole_nm), min(fhi[ax], b_hi - margins.hole_nm)
             flo[3] = fhi[3] = gate.flight_path_angle
-            flo[4] = fhi[4] = _wrap_near(gate.heading, guess_heading)
+            # the gate's heading is a ground track: the state (air) heading is crabbed into the wind
+            flo[4] = fhi[4] = _wrap_near(ac.heading_for_track(gate.heading, gate.flight_path_angle), guess_heading)
         elif end.aircraft == i and end.kind == "land":
             rw = scenario.runway_state
             flo[:3] = fhi[:3] = list(np.clip(rw[:3], space_lo, space_hi))  # the threshold, inside the margin
             flo[3] = fhi[3] = float(rw[3])
-            flo[4] = fhi[4] = _wrap_near(float(rw[4]), guess_heading)
+            flo[4] = fhi[4] = _wrap_near(scenario.runway_heading(ac), guess_heading)
         xf_lb += flo
         xf_ub += fhi
         u_lb += [ac.limits.n_h[0] + margins.load_factor, ac.limits.n_v[0] + margins.load_factor]

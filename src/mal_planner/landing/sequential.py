@@ -395,8 +395,8 @@ def _spaced(scenario: Scenario, guesses: Sequence[AircraftGuess]) -> bool:
     verification checks; the slots of a schedule made without a wake table always are)."""
     def minimum(a: AircraftGuess, b: AircraftGuess) -> float:
         lead, follow = scenario.aircraft_by_callsign(a.callsign), scenario.aircraft_by_callsign(b.callsign)
-        return wake_spacing_s(scenario.wake, lead.wake_category, follow.wake_category, follow.speed,
-                              scenario.separation_nm, scenario.landing_spacing_s)
+        return wake_spacing_s(scenario.wake, lead.wake_category, follow.wake_category,
+                              scenario.final_ground_speed(follow), scenario.separation_nm, scenario.landing_spacing_s)
 
     return scenario.wake == "none" or all(b.landing_time - a.landing_time >= minimum(a, b)
                                           for a, b in zip(guesses[:-1], guesses[1:], strict=True))
