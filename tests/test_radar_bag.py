@@ -345,20 +345,23 @@ def test_radar_simulator_level_flight_and_plan() -> None:
     scenario = load_scenario(SCENARIO)
     sim = RadarSimulator(scenario, t0=100.0)
     sim.step_to(110.0)
-    a2 = scenario.aircraft_by_callsign("A2")
-    gamma, heading = a2.state0[3], a2.state0[4]
-    expect = a2.position + 10 * a2.speed * np.array(
-        [math.cos(gamma) * math.cos(heading), math.cos(gamma) * math.sin(heading), math.sin(gamma)]
-    )
-    np.testing.assert_allclose(sim.tracks[1].state[:3], expect, atol=1e-12)
-    # A received plan (nav_msgs/Path) is followed while it covers the time, by linear interpolation.
-    states = np.array([[0.0, 3.0, 0.15, 0.0, -1.5], [0.0, 2.0, 0.1, 0.0, -1.6]])
-    stamps, planned, _ = path_to_planner(path_msg(MsgTypes, "A1", 110.0, [0.0, 20.0], states))
+    # Without a plan an aircraft holds its heading (A1 flies level already: a straight line) ...
+    a1 = scenario.aircraft_by_callsign("A1")
+    heading = a1.state0[4]
+    expect = a1.position + 10 * a1.speed * np.array([math.cos(heading), math.sin(heading), 0.0])
+    np.testing.assert_allclose(sim.tracks[0].state[:3], expect, atol=1e-9)
+    # A received plan (nav_msgs/Path) is flown by the guidance from the current time: a straight line along -y.
+    t_now = sim.t
+    p0 = sim.tracks[0].state.copy()
+    states = np.array([[p0[0], p0[1], p0[2], 0.0, -math.pi / 2], [p0[0], p0[1] - 1.6, p0[2], 0.0, -math.pi / 2]])
+    stamps, planned, _ = path_to_planner(path_msg(MsgTypes, "A1", t_now, [0.0, 40.0], states))
     assert sim.set_plan("A1", stamps, planned) and not sim.set_plan("ZZ", stamps, planned)
-    sim.step_to(120.0)
-    np.testing.assert_allclose(sim.tracks[0].state, [0.0, 2.5, 0.125, 0.0, -1.55], atol=1e-9)
-    sim.step_to(140.0)  # past the plan: level flight from the last state
-    assert sim.tracks[0].state[1] < 2.0
+    sim.step_to(t_now + 40.0)
+    # ... and A2, climbing at 5 deg without a plan, levels off on its heading.
+    assert abs(sim.tracks[1].state[3]) < math.radians(0.1)
+    assert abs(math.remainder(sim.tracks[1].state[4] - scenario.aircraft[1].state0[4], 2 * math.pi)) < 1e-9
+    # It turns onto the line (75 deg at the 45-deg bank limit) and then flies along it, a little behind.
+    assert abs(sim.tracks[0].state[0] - p0[0]) < 0.02 and abs(sim.tracks[0].state[4] + math.pi / 2) < 0.05
 
 
 def test_bag_io_does_not_load_cyclonedds() -> None:

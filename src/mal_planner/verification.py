@@ -5,7 +5,8 @@ state under the planned controls (the dynamics model's own right-hand side, by a
 method of order 6 on the plan's control samples, all aircraft at once; see :func:`fly`), samples the flown
 trajectory densely and checks the airspace, the exact obstacle geometry (and every crossing of a gate plane), the
 separation of every pair of airborne aircraft, the load factors and the bank angle, the gate and runway
-conditions. ``verified`` is True only when every check holds.
+conditions (their headings are ground tracks: in a scenario's wind the flown, air-relative heading must be the
+crabbed one; the flown track is reported too). ``verified`` is True only when every check holds.
 
 The safety minima (airspace, obstacles, the hole, separation, load factors, bank angle) allow NO tolerance
 on the unsafe side. The flown trajectory is known at dense samples; between them the true path departs
@@ -340,8 +341,8 @@ def fly_reference(traj: Trajectory, scenario: Scenario, tol: Tolerances) -> tupl
 def chord_error_bound(aircraft, t: np.ndarray) -> float:
     """Largest distance (nm) between the path and the chord between two samples ``t`` apart.
 
-    A constant-speed point mass accelerates at g sqrt((n_v - cos gamma)^2 + n_h^2) at most; a curve with
-    acceleration <= a stays within dt^2 a / 8 of its chord over a step dt.
+    A constant-speed point mass accelerates at g sqrt((n_v - cos gamma)^2 + n_h^2) at most (a constant wind adds
+    none); a curve with acceleration <= a stays within dt^2 a / 8 of its chord over a step dt.
     """
     lim = aircraft.limits
     a_max = aircraft.dynamics.gravity * math.hypot(max(abs(lim.n_v[0] - 1.0), lim.n_v[1] + 1.0),
@@ -416,35 +417,23 @@ def verify(scenario: Scenario, trajectories: list[Trajectory], tol: Tolerances |
             fail((cs,), f"{cs}: re-integrated angles deviate {math.degrees(ang_dev):.3g} deg from the plan")
         chord = chord_error_bound(aircraft, t)
         limit_times: list[float] = list(accuracy_times)
-        # Airspace, with the chord error to spare (not at the given initial state, which may lie on a bound).
-        spare = np.where(t > t[0], chord, 0.0)[:, None]
-        below = scenario.airspace[:, 0] - x[:, :3] + spare
-        above = x[:, :3] - scenario.airspace[:, 1] + spare
-        out_of_space = np.max(np.maximum(below, above), axis=1)
-        violation = float(max(np.max(out_of_space), 0.0))
-        if violation > 0.0:
-            k = int(np.argmax(out_of_space))
-            fail((cs,), f"{cs}: leaves the airspace by {violation:.3g} nm at t={t[k]:.2f} s")
-            limit_times += t[out_of_space > 0.0].tolist()
-        # Obstacles, inflated by the chord error: exact containment of every sample and every chord.
-        hits, hit_times = [], []
-        for ob in scenario.obstacles:
-            grown = ob.inflated(chord)
-            inside = grown.contains(x[:, :3])
-            inside[:-1] |= grown.segment_hits(x[:-1, :3], x[1:, :3])
-            if np.any(inside):
-                hits.append(ob.name)
-                hit_times += t[inside].tolist()
-                fail((cs,), f"{cs}: enters obstacle {ob.name!r} at t={t[inside][0]:.2f} s")
+        space = _path_in_space(scenario, cs, t, x, chord)
+        violation, hits, hit_times = space.airspace_violation_nm, space.obstacles, space.obstacle_times
+        for text in space.reasons:
+            fail((cs,), text)
+        limit_times += space.airspace_times
         # Gates: every plane crossing must be in the hole, in the right direction, with the set attitude.
         events = []
         for gate in scenario.gates:
             crossings = _gate_crossings(gate, t, x)
             if not crossings and gate.signed_distance(aircraft.state0[:3]) > 0:
                 fail((cs,), f"{cs}: never passes gate {gate.name!r}")
+            # The gate's heading is a ground track: in a wind the flown (air) heading is crabbed.
+            gate_heading = aircraft.heading_for_track(gate.heading, gate.flight_path_angle)
             for ev in crossings:
+                ev["track"] = aircraft.dynamics.ground_track(ev["gamma"], ev["heading"])
                 ev["gamma_error"] = _angle_error(ev["gamma"], gate.flight_path_angle)
-                ev["heading_error"] = _angle_error(ev["heading"], gate.heading)
+                ev["heading_error"] = _angle_error(ev["heading"], gate_heading)
                 if not gate.in_hole(np.array(ev["position"]), -chord):
                     fail((cs,), f"{cs}: crosses the plane of {gate.name!r} outside the hole at "
                                    f"{np.round(ev['position'], 4).tolist()}")
@@ -475,7 +464,8 @@ def verify(scenario: Scenario, trajectories: list[Trajectory], tol: Tolerances |
         runway = {
             "position_error_nm": float(np.linalg.norm(final[:3] - rw[:3])),
             "gamma_error": _angle_error(final[3], rw[3]),
-            "heading_error": _angle_error(final[4], rw[4]),
+            "heading_error": _angle_error(final[4], scenario.runway_heading(aircraft)),  # crabbed in a wind
+            "track_error": _angle_error(aircraft.dynamics.ground_track(final[3], final[4]), rw[4]),
         }
         if runway["position_error_nm"] > tol.position_nm + tol.deviation_nm:
             fail((cs,), f"{cs}: ends {runway['position_error_nm']:.4g} nm from the runway")
@@ -503,13 +493,60 @@ def verify(scenario: Scenario, trajectories: list[Trajectory], tol: Tolerances |
             lead, follow = scenario.aircraft_by_callsign(a.callsign), scenario.aircraft_by_callsign(b.callsign)
             nm = wake_distance_nm(scenario.wake, lead.wake_category, follow.wake_category, scenario.separation_nm)
             record.wake, record.wake_nm = f"{lead.wake_category}->{follow.wake_category}", nm
-            record.needed_s = max(record.needed_s, nm / follow.speed)
-            if gap < nm / follow.speed:
+            need = nm / scenario.final_ground_speed(follow)  # on final at its ground speed (longer into a headwind)
+            record.needed_s = max(record.needed_s, need)
+            if gap < need:
                 fail((a.callsign, b.callsign), f"{a.callsign}->{b.callsign}: landings {gap:.2f} s apart, the "
                                                f"{scenario.wake} wake minimum {lead.wake_category}->"
-                                               f"{follow.wake_category} of {nm:g} nm needs {nm / follow.speed:.1f} s")
+                                               f"{follow.wake_category} of {nm:g} nm needs {need:.1f} s")
     pairs = _separation(flown, scenario, tol, fail)
     return VerificationReport(not reasons, reasons, checks, pairs, tol, by_aircraft, landings)
+
+
+@dataclass
+class _SpaceCheck:
+    airspace_violation_nm: float
+    airspace_times: list[float]
+    obstacles: list[str]
+    obstacle_times: list[float]
+    reasons: list[str]
+
+
+def _path_in_space(scenario: Scenario, cs: str, t: np.ndarray, x: np.ndarray, chord: float) -> _SpaceCheck:
+    """Airspace and obstacles along a sampled path whose chords are within ``chord`` of it."""
+    reasons: list[str] = []
+    # Airspace, with the chord error to spare (not at the given initial state, which may lie on a bound).
+    spare = np.where(t > t[0], chord, 0.0)[:, None]
+    below = scenario.airspace[:, 0] - x[:, :3] + spare
+    above = x[:, :3] - scenario.airspace[:, 1] + spare
+    out_of_space = np.max(np.maximum(below, above), axis=1)
+    violation = float(max(np.max(out_of_space), 0.0))
+    if violation > 0.0:
+        k = int(np.argmax(out_of_space))
+        reasons.append(f"{cs}: leaves the airspace by {violation:.3g} nm at t={t[k]:.2f} s")
+    # Obstacles, inflated by the chord error: exact containment of every sample and every chord.
+    hits, hit_times = [], []
+    for ob in scenario.obstacles:
+        grown = ob.inflated(chord)
+        inside = grown.contains(x[:, :3])
+        inside[:-1] |= grown.segment_hits(x[:-1, :3], x[1:, :3])
+        if np.any(inside):
+            hits.append(ob.name)
+            hit_times += t[inside].tolist()
+            reasons.append(f"{cs}: enters obstacle {ob.name!r} at t={t[inside][0]:.2f} s")
+    return _SpaceCheck(violation, t[out_of_space > 0.0].tolist(), hits, hit_times, reasons)
+
+
+def flown_path_infringements(scenario: Scenario, aircraft, t: np.ndarray, x: np.ndarray) -> list[str]:
+    """Airspace exits and obstacle entries of a flown track (samples ``t``, states ``x``), one line each: the
+    checks :func:`verify` makes on a re-integrated plan, for tracks flown in closed loop."""
+    return _path_in_space(scenario, aircraft.callsign, t, x, chord_error_bound(aircraft, t)).reasons
+
+
+def separation_checks(flown: dict[str, tuple[np.ndarray, np.ndarray]], scenario: Scenario, fail) -> list[PairCheck]:
+    """Closest approach of every pair of flown tracks (``fail(callsigns, text)`` for each loss), as :func:`verify`
+    checks plans: on the union of both tracks' samples, the chord errors taken off."""
+    return _separation(flown, scenario, Tolerances.for_scenario(scenario), fail)
 
 
 def _separation(flown: dict[str, tuple[np.ndarray, np.ndarray]], scenario: Scenario, tol: Tolerances,
@@ -562,6 +599,8 @@ def _far_apart(scenario: Scenario, a: str, b: str, ta: np.ndarray, xa: np.ndarra
     errors) is separated all along; its smallest distance lies in an interval whose lower bound is below the
     grid's smallest distance, which is one or a few. The dense check all along was most of the verification's
     time at 20 aircraft of a terminal area. The grid step is separation / (V_a + V_b): half a separation of slack.
+    V_a + V_b (airspeeds) bounds the closing speed in a wind too: a uniform wind moves both alike, so their relative
+    velocity is that of their air velocities.
     """
     speeds = scenario.aircraft_by_callsign(a).speed + scenario.aircraft_by_callsign(b).speed
     radius = scenario.separation_radius_nm  # farther apart than this is separated, also for a cylinder

@@ -84,6 +84,11 @@ def plan_row(job: dict[str, Any]) -> dict[str, Any]:
         scenario = scenario_from_text(job["text"], job["source"])
         row.update(scenario_columns(scenario))
         t0 = time.perf_counter()
+        if job["options"].get("closed_loop"):
+            from mal_planner.closedloop.campaign import closed_loop_row
+
+            row.update(closed_loop_row(scenario, job["source"], job["options"]))
+            return row
         result = Planner(to_plan_options(job["options"])).plan(scenario, reuse=False)
     except (Exception, MemoryError) as exc:  # every failure becomes a row; the campaign goes on
         outcome = classify(error=exc)

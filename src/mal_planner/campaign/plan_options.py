@@ -10,7 +10,8 @@ if TYPE_CHECKING:
     from mal_planner.pipeline import PlanOptions
 
 DEFAULTS: dict[str, Any] = {"initializer": "multi-rrt", "seed": 0, "guess": "initializer",
-                            "free_landing_times": False, "mesh_tol": 1e-5, "refine": True, "time_limit_s": None}
+                            "free_landing_times": False, "mesh_tol": 1e-5, "refine": True, "time_limit_s": None,
+                            "closed_loop": None}
 
 
 def add_plan_arguments(parser: argparse.ArgumentParser) -> None:
@@ -32,10 +33,27 @@ def add_plan_arguments(parser: argparse.ArgumentParser) -> None:
                             "classed timeout (default: none; --timeout-s kills the process in any case)")
 
 
+    loop = parser.add_argument_group("closed loop (mal_planner.closedloop): fly every scenario with the service")
+    loop.add_argument("--closed-loop", action="store_true",
+                      help="fly each scenario in closed loop instead of planning it once; a run succeeds when "
+                           "everyone lands with every minimum kept on the flown tracks")
+    loop.add_argument("--wind-kt-max", type=float, default=20.0,
+                      help="mean wind per scenario: uniform in [0, this] kt from a uniform direction, drawn from "
+                           "the seed and the file name (default: %(default)s)")
+    loop.add_argument("--gust-kt", type=float, default=0.0, help="gusts, rms per axis, kt (default: 0)")
+    loop.add_argument("--noise-m", type=float, default=30.0, help="radar noise sigma, m (default: %(default)s)")
+    loop.add_argument("--delay-s", type=float, default=0.0, help="plan uptake delay, s (default: 0)")
+    loop.add_argument("--unknown-wind", action="store_true", help="the planner plans in still air")
+
+
 def options_from_args(args: argparse.Namespace) -> dict[str, Any]:
+    closed = None
+    if args.closed_loop:
+        closed = {"wind_kt_max": args.wind_kt_max, "gust_kt": args.gust_kt, "noise_m": args.noise_m,
+                  "delay_s": args.delay_s, "knows_wind": not args.unknown_wind}
     return {"initializer": args.initializer, "seed": args.seed, "guess": args.guess,
             "free_landing_times": bool(args.free_landing_times), "mesh_tol": args.mesh_tol,
-            "refine": not args.no_refine, "time_limit_s": args.plan_time_limit_s}
+            "refine": not args.no_refine, "time_limit_s": args.plan_time_limit_s, "closed_loop": closed}
 
 
 def check_options(options: dict[str, Any]) -> str | None:
@@ -49,6 +67,11 @@ def check_options(options: dict[str, Any]) -> str | None:
     limit = options.get("time_limit_s")
     if limit is not None and not limit > 0:
         return f"--plan-time-limit-s: must be > 0, got {limit}"
+    closed = options.get("closed_loop") or {}
+    for key, flag in (("wind_kt_max", "--wind-kt-max"), ("gust_kt", "--gust-kt"), ("noise_m", "--noise-m"),
+                      ("delay_s", "--delay-s")):
+        if key in closed and not closed[key] >= 0:
+            return f"{flag}: must be >= 0, got {closed[key]}"
     return None
 
 

@@ -31,6 +31,20 @@ COLUMNS: tuple[str, ...] = (
     "seed",
     "worker",                      # host:pid of the engine worker that ran it
 )
+REQUIRED_COLUMNS = COLUMNS
+"""Every table has these; the closed-loop columns below are empty in an open-loop campaign (and may be missing
+from tables written before they existed)."""
+CLOSED_LOOP_COLUMNS: tuple[str, ...] = (
+    "cl_wind_kt", "cl_wind_from_deg",  # the mean wind flown (drawn per scenario), local heading it blows from
+    "cl_landed",                   # aircraft that landed inside the touchdown window
+    "cl_separation_ratio",         # smallest distance flown in separation minima (< 1: a loss of separation)
+    "cl_losses_of_separation", "cl_infringements",
+    "cl_max_deviation_nm",         # largest distance of an aircraft from the plan it flew
+    "cl_replans", "cl_failed_replans", "cl_replan_reasons",
+    "cl_replan_median_s", "cl_replan_p95_s", "cl_replan_max_s",
+    "cl_order_changes", "cl_min_landing_spacing_s",
+)
+COLUMNS = COLUMNS + CLOSED_LOOP_COLUMNS
 
 
 def format_row(row: dict) -> dict[str, str]:
@@ -94,7 +108,7 @@ def read_rows(path: Path) -> list[dict[str, str]]:
     reader = csv.DictReader(io.StringIO(text))
     if reader.fieldnames is None:
         return []
-    missing = [c for c in COLUMNS if c not in reader.fieldnames]
+    missing = [c for c in REQUIRED_COLUMNS if c not in reader.fieldnames]
     if missing:
         raise ResultsFormatError(f"{path}: not a campaign table (missing columns: {', '.join(missing)})")
     return [r for r in reader if r.get("worker") is not None and r.get("file")]

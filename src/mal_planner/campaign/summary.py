@@ -136,9 +136,44 @@ def summary_markdown(rows: Sequence[dict[str, str]], figures: Sequence[Path] = (
               f"* smallest separation in a verified plan: {_fmt(min(seps) if seps else None, 3)} nm",
               f"* peak memory of a planning process: median {_fmt(_median(memory), 0)} MB, "
               f"max {_fmt(max(memory) if memory else None, 0)} MB"]
+    lines += closed_loop_section(rows)
     if figures:
         lines += ["", "## Figures", ""] + [f"![{f.stem}]({f.name})" for f in figures]
     return "\n".join(lines) + "\n"
+
+
+def closed_loop_section(rows: Sequence[dict[str, str]]) -> list[str]:
+    """The closed-loop table (rows of ``mal-campaign --closed-loop``); none for an open-loop campaign."""
+    flown = [r for r in rows if r.get("cl_landed")]
+    if not flown:
+        return []
+
+    def values(key: str, sel: Sequence[dict[str, str]] = flown) -> list[float]:
+        return [v for r in sel if (v := as_float(r.get(key, ""))) is not None]
+
+    ok = sum(r["status"] == "ok" for r in flown)
+    lines = ["", "## Closed loop (flown tracks)", "",
+             f"{ok} of {len(flown)} runs ({100.0 * ok / len(flown):.1f} %) landed everyone with no loss of "
+             "separation and no airspace or obstacle infringement on the tracks flown.", "",
+             "| N | runs | success | losses of separation | infringements | smallest separation (minima) | "
+             "largest deviation (nm, median / max) | replans (mean) | replan time median / p95 / max (s) |",
+             "|---|---|---|---|---|---|---|---|---|"]
+    for n in sorted({n for r in flown if (n := n_of(r)) is not None}):
+        sel = [r for r in flown if n_of(r) == n]
+        ratio, dev, replans = values("cl_separation_ratio", sel), values("cl_max_deviation_nm", sel), \
+            values("cl_replans", sel)
+        lat = values("cl_replan_median_s", sel)
+        p95, top = values("cl_replan_p95_s", sel), values("cl_replan_max_s", sel)
+        lines.append(f"| {n} | {len(sel)} | {sum(r['status'] == 'ok' for r in sel)} | "
+                     f"{int(sum(values('cl_losses_of_separation', sel)))} | {int(sum(values('cl_infringements', sel)))}"
+                     f" | {_fmt(min(ratio) if ratio else None, 3)} | {_fmt(_median(dev), 4)} / "
+                     f"{_fmt(max(dev) if dev else None, 4)} | {_fmt(float(np.mean(replans)) if replans else None, 1)}"
+                     f" | {_fmt(_median(lat))} / {_fmt(_median(p95))} / {_fmt(max(top) if top else None)} |")
+    failed = [r for r in flown if r["status"] != "ok"]
+    if failed:
+        lines += ["", "Runs that failed, and why:", ""]
+        lines += [f"* {Path(r['file']).name}: {r['reason']}" for r in failed[:20]]
+    return lines
 
 
 def _median(values: Sequence[float]) -> float | None:

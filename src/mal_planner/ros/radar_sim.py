@@ -1,9 +1,12 @@
-"""Radar simulator node: flies a scenario's aircraft and publishes their (noisy) tracks.
+"""Flight simulator node: flies a scenario's aircraft under guidance and publishes their (noisy) radar tracks.
 
-Each aircraft flies level, turn-free (n_h = 0, n_v = cos gamma) along its initial heading with its dynamics
-model, or follows a plan received as ``nav_msgs/Path`` on ``aircraft/<callsign>/path`` (poses by stamp,
-linear interpolation) while the plan covers the current time. Tracks go out as ``mal_msgs/AircraftState``
-on ``aircraft/<callsign>/state`` and/or ``radar/tracks``, stamped with simulated time (start + t).
+Each aircraft flies its dynamics model (:class:`mal_planner.closedloop.FlightSimulator`): it follows the latest
+plan received as ``nav_msgs/Path`` on ``aircraft/<callsign>/path`` with the path-following guidance, in the
+scenario's wind plus seeded gusts, and holds its heading and levels off without a plan. Tracks go out as
+``mal_msgs/AircraftState`` on ``aircraft/<callsign>/state`` and/or ``radar/tracks``, stamped with simulated
+time (start + t), which ``--clock`` also publishes on ``/clock`` (nodes with ``use_sim_time`` follow it).
+An aircraft that lands (or leaves) is no longer tracked; ``--until-landed`` stops once every one has, with a
+summary of what was flown (``<--out>/closed_loop.json``).
 
     python -m mal_planner.ros.radar_sim --scenario scenarios/thesis.yaml --rate 2 --noise-m 5 --duration 60
 """
@@ -11,111 +14,91 @@ on ``aircraft/<callsign>/state`` and/or ``radar/tracks``, stamped with simulated
 from __future__ import annotations
 
 import argparse
+import json
 import logging
+import math
 import sys
-from dataclasses import dataclass, field
+import time
+from pathlib import Path
 from typing import Any
 
 import numpy as np
 
-from mal_planner.dynamics import DynamicsModel
+from mal_planner.closedloop.disturbances import RadarNoise, WindSpec
+from mal_planner.closedloop.guidance import Reference
+from mal_planner.closedloop.simulator import FlightSimulator, SimAircraft, SimOptions
 from mal_planner.ros.bagio import stop_event
-from mal_planner.ros.convert import path_to_planner, planner_to_aircraft_state
+from mal_planner.ros.convert import path_to_planner, planner_to_aircraft_state, time_to_msg
 from mal_planner.scenario import Scenario, ScenarioError, load_scenario
-from mal_planner.units import PLANNER_FRAME, m_to_nm
+from mal_planner.units import PLANNER_FRAME, kt_to_nm_per_s
 
 STATE_TYPE = "mal_msgs/msg/AircraftState"
-
-
-def propagate_level(dynamics: DynamicsModel, state: np.ndarray, dt: float, max_step: float = 1.0) -> np.ndarray:
-    """Integrate level, turn-free flight (n_h = 0, n_v = cos gamma0) for ``dt`` seconds (RK4 steps)."""
-    x = np.asarray(state, dtype=float).copy()
-    if dt <= 0:
-        return x
-    u = dynamics.level_flight_control(x[3])
-    n = max(1, int(np.ceil(dt / max_step)))
-    h = dt / n
-    for _ in range(n):
-        x = dynamics.rk4_step(x, u, h)
-    return x
-
-
-@dataclass
-class SimTrack:
-    """One simulated aircraft: true state [nm, rad] and an optional plan (absolute stamps, states)."""
-
-    callsign: str
-    dynamics: DynamicsModel
-    state: np.ndarray
-    wake: str | None = None
-    plan: tuple[np.ndarray, np.ndarray] | None = field(default=None, repr=False)
+CLOCK_TYPE = "rosgraph_msgs/msg/Clock"
 
 
 class RadarSimulator:
-    """Pure simulation (no DDS): advance with :meth:`step_to`, read tracks with :meth:`measurements`."""
+    """The simulated aircraft and their radar (no DDS): advance with :meth:`step_to`, read :meth:`measurements`.
 
-    def __init__(self, scenario: Scenario, t0: float = 0.0, noise_m: float = 0.0, seed: int | None = None) -> None:
-        self.t = float(t0)
-        self.noise_m = float(noise_m)
-        self.rng = np.random.default_rng(seed)
-        self.tracks = [SimTrack(a.callsign, a.dynamics, np.asarray(a.state0, float).copy(), a.wake_category)
-                       for a in scenario.aircraft]  # fmt: skip
+    Times are absolute (the radar clock): the simulation's time 0 is ``t0``.
+    """
+
+    def __init__(self, scenario: Scenario, t0: float = 0.0, noise_m: float = 0.0, seed: int | None = None,
+                 options: SimOptions | None = None) -> None:
+        self.t0 = float(t0)
+        self.sim = FlightSimulator(scenario, options or SimOptions(wind=WindSpec(scenario.wind), seed=seed))
+        self.noise = RadarNoise(noise_m, None if seed is None else seed + 1)
+
+    @property
+    def t(self) -> float:
+        return self.t0 + self.sim.t
+
+    @property
+    def tracks(self) -> list[SimAircraft]:
+        return self.sim.aircraft
 
     def set_plan(self, callsign: str, stamps: np.ndarray, states: np.ndarray) -> bool:
-        """Follow ``states`` at absolute ``stamps`` [s] (from a Path message); False for unknown callsigns."""
-        for tr in self.tracks:
-            if tr.callsign == callsign:
-                order = np.argsort(stamps)
-                tr.plan = (np.asarray(stamps, float)[order], np.asarray(states, float)[order]) if len(stamps) else None
-                return True
-        return False
+        """Fly ``states`` at absolute ``stamps`` [s] (a Path message; empty: none); False for unknown callsigns."""
+        reference = Reference(np.asarray(stamps, float) - self.t0, states) if len(stamps) >= 2 else None
+        return self.sim.set_plan(callsign, reference)
 
     def step_to(self, t: float) -> None:
         """Advance every aircraft to absolute time ``t`` [s]."""
-        dt = t - self.t
-        for tr in self.tracks:
-            planned = _plan_state(tr.plan, t)
-            tr.state = planned if planned is not None else propagate_level(tr.dynamics, tr.state, dt)
-        self.t = t
+        self.sim.advance(t - self.t0)
 
     def measurements(self) -> list[tuple[str, np.ndarray, float, str | None]]:
-        """``(callsign, state, speed nm/s, wake)`` per aircraft with Gaussian position noise (sigma in metres)."""
-        out = []
-        for tr in self.tracks:
-            state = tr.state.copy()
-            if self.noise_m > 0:
-                state[:3] += m_to_nm(self.rng.normal(0.0, self.noise_m, 3))
-            out.append((tr.callsign, state, tr.dynamics.speed, tr.wake))
-        return out
-
-
-def _plan_state(plan: tuple[np.ndarray, np.ndarray] | None, t: float) -> np.ndarray | None:
-    if plan is None or len(plan[0]) == 0 or not plan[0][0] <= t <= plan[0][-1]:
-        return None
-    stamps, states = plan
-    states = states.copy()
-    states[:, 4] = np.unwrap(states[:, 4])
-    return np.array([np.interp(t, stamps, states[:, i]) for i in range(states.shape[1])])
+        """``(callsign, state, airspeed nm/s, wake)`` of every aircraft still flying, with position noise."""
+        return [(ac.callsign, self.noise.apply(ac.state), ac.model.speed, ac.wake) for ac in self.sim.measurements()]
 
 
 def parse_args(argv: list[str] | None = None) -> argparse.Namespace:
     p = argparse.ArgumentParser(prog="mal-radar-sim", description=__doc__.split("\n")[0])
-    p.add_argument("--scenario", required=True, help="scenario YAML file")
+    p.add_argument("--scenario", required=True, help="scenario YAML file (its wind: is the mean wind flown)")
     p.add_argument("--rate", type=float, default=2.0, help="publish rate [Hz] (default 2)")
     p.add_argument("--noise-m", type=float, default=0.0, help="position noise sigma [m] (default 0)")
     p.add_argument("--duration", type=float, default=0.0, help="simulated seconds, 0 = forever (default 0)")
-    p.add_argument("--seed", type=int, default=None, help="noise seed")
+    p.add_argument("--seed", type=int, default=None, help="seed of the noise and the gusts")
     p.add_argument("--topics", choices=("per-aircraft", "shared", "both"), default="both")
     p.add_argument("--namespace", default="", help="node namespace")
     p.add_argument("--no-follow", action="store_true", help="ignore plans on aircraft/<callsign>/path")
+    p.add_argument("--gust-kt", type=float, default=0.0, help="gusts, rms per horizontal axis [kt] (default 0)")
+    p.add_argument("--delay-s", type=float, default=0.0, help="delay before a received plan is flown [s]")
+    p.add_argument("--speed", type=float, default=1.0, help="simulated seconds per wall-clock second (default 1)")
+    p.add_argument("--clock", action="store_true", help="publish the simulated time on /clock")
+    p.add_argument("--wait-for-plan", type=float, default=0.0, metavar="S",
+                   help="hold the simulated time (tracks still published) until the first plan arrives, at most S "
+                        "wall-clock seconds (default 0: do not wait)")
+    p.add_argument("--until-landed", action="store_true", help="stop when every aircraft has landed (or left)")
+    p.add_argument("--out", default=None, help="folder for closed_loop.json (with --until-landed)")
     args = p.parse_args(argv)
-    if args.rate <= 0 or args.noise_m < 0 or args.duration < 0:
-        p.error("--rate must be > 0, --noise-m and --duration >= 0")
+    if args.rate <= 0 or args.noise_m < 0 or args.duration < 0 or args.gust_kt < 0 or args.delay_s < 0 \
+            or args.speed <= 0 or args.wait_for_plan < 0:
+        p.error("--rate and --speed must be > 0; --noise-m, --duration, --gust-kt, --delay-s, --wait-for-plan >= 0")
     return args
 
 
 def main(argv: list[str] | None = None) -> int:
-    """Run the radar simulator node; 0 on clean exit, 2 on bad input."""
+    """Run the simulator node; 0 on clean exit (with --until-landed: everyone landed safely), 1 if not, 2 on bad
+    input."""
     args = parse_args(argv)
     logging.basicConfig(level=logging.INFO, format="[%(levelname)s] [%(name)s]: %(message)s")
     try:
@@ -123,39 +106,57 @@ def main(argv: list[str] | None = None) -> int:
     except ScenarioError as exc:
         print(f"radar_sim: {exc}", file=sys.stderr)
         return 2
+    wind = WindSpec(scenario.wind, kt_to_nm_per_s(args.gust_kt))
+    if wind.speed + 3.0 * wind.gust_sigma >= min(a.speed * math.cos(a.state0[3]) for a in scenario.aircraft):
+        print("radar_sim: --gust-kt: the wind plus 3 x the gusts is not below the slowest airspeed", file=sys.stderr)
+        return 2
     from mal_planner.ros.transport import QOS_DEFAULT, QOS_LATCHED, create_node
 
     node = create_node("radar_sim", args.namespace)
     stop = stop_event()
     log = node.get_logger()
-    sim = RadarSimulator(scenario, t0=node.now(), noise_m=args.noise_m, seed=args.seed)
-    start = sim.t
+    options = SimOptions(wind=wind, plan_delay_s=args.delay_s, seed=args.seed)
+    sim = RadarSimulator(scenario, t0=node.now(), noise_m=args.noise_m, seed=args.seed, options=options)
     per_ac = {}
     if args.topics in ("per-aircraft", "both"):
         per_ac = {tr.callsign: node.create_publisher(STATE_TYPE, f"aircraft/{tr.callsign}/state", QOS_DEFAULT)
                   for tr in sim.tracks}  # fmt: skip
     shared = node.create_publisher(STATE_TYPE, "radar/tracks", QOS_DEFAULT) if args.topics != "per-aircraft" else None
+    clock = node.create_publisher(CLOCK_TYPE, "/clock", QOS_DEFAULT) if args.clock else None
+    plans: dict[str, int] = {}
     if not args.no_follow:
         for tr in sim.tracks:
             node.create_subscription("nav_msgs/msg/Path", f"aircraft/{tr.callsign}/path",
-                                     _on_path(sim, tr.callsign, log), QOS_LATCHED)  # fmt: skip
-    tick = [0]
+                                     _on_path(sim, tr.callsign, log, plans), QOS_LATCHED)  # fmt: skip
+    run = {"ticks": 0, "held": 0, "frozen": None, "started": time.monotonic()}
+    hold_until = time.monotonic() + args.wait_for_plan
 
     def on_timer() -> None:
-        t = tick[0] / args.rate
-        sim.step_to(start + t)
-        for callsign, state, speed, wake in sim.measurements():
+        holding = args.wait_for_plan > 0 and not plans and time.monotonic() < hold_until
+        if holding:  # the same tracks again (duplicates to the planner): the traffic appears, time stands still
+            run["held"] += 1
+        else:
+            run["ticks"] += 1
+            run["frozen"] = None
+            sim.step_to(sim.t0 + run["ticks"] * args.speed / args.rate)
+        if clock is not None:
+            clock.publish(node.types.msg(CLOCK_TYPE)(clock=time_to_msg(node.types, sim.t)))
+        if run["frozen"] is None:
+            run["frozen"] = sim.measurements()
+        for callsign, state, speed, wake in run["frozen"]:
             msg = planner_to_aircraft_state(node.types, callsign, sim.t, state, speed, wake, PLANNER_FRAME)
             if callsign in per_ac:
                 per_ac[callsign].publish(msg)
             if shared is not None:
                 shared.publish(msg)
-        tick[0] += 1
-        if args.duration and t >= args.duration:
+        if args.until_landed and sim.sim.done:
+            stop.set()
+        if args.duration and sim.sim.t >= args.duration:
             stop.set()
 
     node.create_timer(1.0 / args.rate, on_timer)
-    print(f"radar_sim: {len(sim.tracks)} aircraft at {args.rate:g} Hz ({args.topics})", flush=True)
+    print(f"radar_sim: {len(sim.tracks)} aircraft at {args.rate:g} Hz ({args.topics}), {args.speed:g}x real time"
+          f"{', /clock' if clock is not None else ''}", flush=True)
     try:
         while not stop.is_set():
             node.spin_once(0.1)
@@ -163,20 +164,41 @@ def main(argv: list[str] | None = None) -> int:
         pass
     finally:
         node.shutdown()
-    log.info("published %d updates", tick[0])
+    log.info("published %d updates (%.0f s simulated)", run["ticks"] + run["held"], sim.sim.t)
+    if args.until_landed:
+        return _report(scenario, sim.sim, args.out, time.monotonic() - run["started"])
     return 0
 
 
-def _on_path(sim: RadarSimulator, callsign: str, log: Any) -> Any:
+def _report(scenario: Scenario, sim: FlightSimulator, out: str | None, wall_s: float) -> int:
+    """Print (and save) what was flown; 0 when everyone landed with every minimum kept."""
+    from mal_planner.closedloop.cli import summary_lines
+    from mal_planner.closedloop.metrics import measure_flight
+
+    metrics = measure_flight(scenario, sim, wall_s=wall_s)
+    print("\n".join(summary_lines(metrics, planner_side=False)), flush=True)
+    if out:
+        Path(out).mkdir(parents=True, exist_ok=True)
+        (Path(out) / "closed_loop.json").write_text(json.dumps(metrics.to_dict(), default=float, indent=1),
+                                                    encoding="utf-8")
+    return 0 if metrics.success else 1
+
+
+def _on_path(sim: RadarSimulator, callsign: str, log: Any, plans: dict[str, int]) -> Any:
     def callback(msg: Any) -> None:
         stamps, states, _bank = path_to_planner(msg)
         sim.set_plan(callsign, stamps, states)
-        log.info("%s: following a plan of %d poses", callsign, len(stamps))
+        plans[callsign] = plans.get(callsign, 0) + 1
+        if len(stamps):
+            log.info("%s: flying plan #%d (%d poses, %.0f s) from t=%.1f s", callsign, plans[callsign], len(stamps),
+                     stamps[-1] - stamps[0], sim.sim.t)
+        else:
+            log.info("%s: plan withdrawn at t=%.1f s: holding heading, levelling off", callsign, sim.sim.t)
 
     return callback
 
 
-__all__ = ["RadarSimulator", "SimTrack", "main", "propagate_level"]
+__all__ = ["RadarSimulator", "main"]
 
 if __name__ == "__main__":
     sys.exit(main())

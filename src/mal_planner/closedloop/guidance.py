@@ -1,0 +1,122 @@
+"""Path-following guidance: the load factors that make an aircraft fly a published plan.
+
+A plan is a time-stamped reference (a ``nav_msgs/Path`` or a :class:`~mal_planner.trajectory.Trajectory`):
+where the aircraft should be at each moment. The law, per aircraft and control step:
+
+1. the reference at the current time: position p_r, ground velocity v_r (the path's own rate of change, so
+   it holds whatever wind the planner assumed), flight-path angle, heading and their rates;
+2. the ground velocity wanted: v_r + (p_r - p) / T_p, the reference's plus a correction of the along-track,
+   cross-track and height errors;
+3. the air velocity that gives it in the wind the aircraft measures (air data and satellite navigation do
+   that on board): its direction sets the wanted heading and flight-path angle (the airspeed is constant, so
+   only the direction can be chosen; the vertical component is met first);
+4. heading and flight-path-angle rates: the reference's (feedforward) plus the wanted angle errors over
+   ``T_a``, converted to load factors by the model's equations and clipped to the aircraft's load-factor
+   and bank limits.
+
+The time constants are fractions of the scenario's turn time T (the time to turn one radian at the bank
+limit; :mod:`mal_planner.scales`): T_a = T/4 and T_p = T/2 (a cross-track error then decays with damping
+0.71), so the same law flies the thesis's box and a terminal area. Without a plan, or after its end, the
+aircraft holds its heading and levels off.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+
+from mal_planner.dynamics import ControlLimits, DynamicsModel
+
+ATTITUDE_TIME_PER_TURN_TIME = 0.25
+"""T_a / T: how fast heading and flight-path-angle errors are taken out."""
+POSITION_TIME_PER_TURN_TIME = 0.5
+"""T_p / T: how fast position errors are taken out (T_a / T_p = 1/2: damping 1 / (2 sqrt(1/2)) = 0.71)."""
+
+
+class Reference:
+    """A plan to fly: positions and angles by time, sampled with one search per query."""
+
+    def __init__(self, t: np.ndarray, states: np.ndarray) -> None:
+        t = np.asarray(t, float)
+        states = np.asarray(states, float)
+        keep = np.concatenate([[True], np.diff(t) > 0])  # duplicate stamps (phase boundaries) carry no rate
+        t, states = t[keep], states[keep].copy()
+        if len(t) < 2:
+            raise ValueError("a plan needs at least two poses at distinct times")
+        states[:, 4] = np.unwrap(states[:, 4])
+        velocity = np.gradient(states[:, :3], t, axis=0)
+        rates = np.gradient(states[:, 3:5], t, axis=0)
+        self.t = t
+        self.table = np.column_stack([states, velocity, rates])  # p(3), gamma, heading, v(3), gamma', heading'
+
+    @property
+    def start(self) -> float:
+        return float(self.t[0])
+
+    @property
+    def end(self) -> float:
+        return float(self.t[-1])
+
+    def sample(self, t: float) -> np.ndarray:
+        """Row [x, y, z, gamma, heading, vx, vy, vz, gamma', heading'] at ``t`` (clamped to the plan)."""
+        k = int(np.clip(np.searchsorted(self.t, t) - 1, 0, len(self.t) - 2))
+        t0, t1 = self.t[k], self.t[k + 1]
+        w = min(max((t - t0) / (t1 - t0), 0.0), 1.0)
+        return (1.0 - w) * self.table[k] + w * self.table[k + 1]
+
+    def position(self, t: float) -> np.ndarray:
+        return self.sample(t)[:3]
+
+
+@dataclass(frozen=True)
+class GuidanceGains:
+    attitude_s: float
+    """T_a: heading and flight-path-angle errors decay with this time constant."""
+    position_s: float
+    """T_p: position errors decay with this time constant."""
+
+    @classmethod
+    def for_turn_time(cls, turn_time_s: float) -> GuidanceGains:
+        return cls(ATTITUDE_TIME_PER_TURN_TIME * turn_time_s, POSITION_TIME_PER_TURN_TIME * turn_time_s)
+
+
+def _wrap(angle: float) -> float:
+    return (angle + math.pi) % (2.0 * math.pi) - math.pi
+
+
+def clip_to_limits(n_h: float, n_v: float, limits: ControlLimits) -> tuple[float, float]:
+    """Load factors clipped into the box and the bank cone |n_h| <= tan(mu_max) n_v."""
+    n_v = min(max(n_v, limits.n_v[0]), limits.n_v[1])
+    cap = math.tan(limits.bank_angle_max) * n_v
+    n_h = min(max(n_h, limits.n_h[0], -cap), limits.n_h[1], cap)
+    return n_h, n_v
+
+
+def guidance_controls(model: DynamicsModel, limits: ControlLimits, gains: GuidanceGains, state: np.ndarray,
+                      wind: np.ndarray, reference: Reference | None, t: float, lead_s: float = 0.0
+                      ) -> tuple[float, float]:
+    """Load factors (n_h, n_v) that track ``reference`` at time ``t``, or hold heading and level off without one.
+
+    ``wind`` is the horizontal wind the aircraft measures now (nm/s). ``lead_s``: the feedforward rates are the
+    reference's this much later, which makes up for a first-order lag of that time constant between the
+    commanded and the flown load factors (to first order in the lag).
+    """
+    v, g = model.speed, model.gravity
+    gamma, heading = float(state[3]), float(state[4])
+    cos_g = math.cos(gamma)
+    if reference is None or t > reference.end:
+        gamma_rate, heading_rate = -gamma / gains.attitude_s, 0.0
+    else:
+        r = reference.sample(t)
+        wanted = r[5:8] + (r[:3] - state[:3]) / gains.position_s
+        air = wanted - np.array([wind[0], wind[1], 0.0])
+        gamma_d = math.asin(min(max(air[2] / v, -1.0), 1.0))
+        heading_d = math.atan2(air[1], air[0])
+        ahead = reference.sample(t + lead_s) if lead_s > 0 else r
+        gamma_rate = ahead[8] + (gamma_d - gamma) / gains.attitude_s
+        heading_rate = ahead[9] + _wrap(heading_d - heading) / gains.attitude_s
+    n_h = v * cos_g * heading_rate / g
+    n_v = cos_g + v * gamma_rate / g
+    return clip_to_limits(n_h, n_v, limits)

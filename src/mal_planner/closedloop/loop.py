@@ -1,0 +1,242 @@
+"""The closed loop in one process: the planning service and the flight simulator, in simulated time.
+
+This is what the planner node and the simulator node do over DDS, without the transport, so that campaigns
+run hundreds of closed loops on the Dask engine. The service side is the node's: radar tracks (the simulated
+aircraft, with noise) at the radar's rate; a plan request built from them by the node's own
+:func:`~mal_planner.ros.plan_scenario.build_plan_scenario`; the node's :class:`~mal_planner.pipeline.Planner`
+(warm-started replans and their fallbacks); a replan when an aircraft strays from its plan (or periodically).
+
+Planning time is charged honestly: a replan requested at time t reaches the aircraft at t + (wall-clock
+planning time) x ``planning_time_factor``, while they go on flying the previous plan. So that the new plan
+starts where they will be, it starts at t + lead (1.5 times the latest planning time, charged), from the tracks
+predicted along the plans they fly: the plan's state then, moved by the deviation measured now (as model
+predictive control does with a known delay). The first plan is the exception: it is made before the simulation
+starts (the service was running when the traffic appeared), from the true initial states.
+"""
+
+from __future__ import annotations
+
+import logging
+import math
+import time
+from dataclasses import dataclass, field, replace
+
+import numpy as np
+
+from mal_planner.closedloop.disturbances import RadarNoise, WindSpec
+from mal_planner.closedloop.guidance import Reference
+from mal_planner.closedloop.simulator import FlightSimulator, SimOptions
+from mal_planner.pipeline import Planner, PlanOptions, PlanResult
+from mal_planner.ros.plan_scenario import build_plan_scenario
+from mal_planner.ros.state_store import Track
+from mal_planner.scales import Scales
+from mal_planner.scenario import Scenario
+
+log = logging.getLogger("mal_planner.closedloop")
+
+RADAR_PERIOD_S = 1.0
+"""Track update period: ADS-B's 1 Hz (a terminal radar turns in 4-5 s)."""
+DEVIATION_PER_SEPARATION = 0.2
+"""Replan when a track strays this fraction of the separation from its plan (thesis: 0.05 nm, 93 m)..."""
+DEVIATION_PER_NOISE = 6.0
+"""... or this many radar-noise sigmas, if more: a deviation the radar can tell from its noise."""
+LEAD_PER_LATENCY = 1.5
+"""A replan starts this many times the latest planning time ahead of the tracks it is made from."""
+REPLAN_INTERVAL_TURN_TIMES = 1.0
+"""No deviation or periodic replan sooner than this after a plan arrived (thesis: 7.6 s; terminal area 14 s)."""
+PLAN_TIME_LIMIT_S = 60.0
+"""Wall-clock limit of one plan (the planner node's ``planning_time_limit_s``): the best result so far then."""
+OVERRUN_TURN_TIMES = 20.0
+"""The run ends this long after the first plan's last landing if aircraft are still flying."""
+
+
+@dataclass(frozen=True)
+class ClosedLoopOptions:
+    sim: SimOptions = SimOptions()
+    plan: PlanOptions = field(default_factory=lambda: PlanOptions(time_limit_s=PLAN_TIME_LIMIT_S))
+    planner_knows_wind: bool = True
+    """The planner gets the mean wind (as a forecast or an estimate); False: it plans in still air."""
+    radar_noise_m: float = 0.0
+    """Radar position noise, sigma per axis in metres."""
+    radar_period_s: float = RADAR_PERIOD_S
+    replan_period_s: float = 0.0
+    """Replan this often regardless of deviations (0: only on deviations)."""
+    deviation_nm: float | None = None
+    """Replan threshold; None: the larger of DEVIATION_PER_SEPARATION x separation and DEVIATION_PER_NOISE x noise."""
+    planning_time_factor: float = 1.0
+    """Simulated seconds charged per wall-clock second of planning (1: honest; 0: planning takes no time)."""
+    max_time_s: float | None = None
+    """End of the run; None: the first plan's last landing plus OVERRUN_TURN_TIMES turn times."""
+
+
+@dataclass
+class Replan:
+    """One plan request of the service."""
+
+    t: float
+    """Simulated time of the tracks it started from."""
+    reason: str
+    wall_s: float
+    arrived_at: float
+    ok: bool
+    message: str
+    aircraft: list[str]
+    landing_order: list[str]
+
+
+@dataclass
+class ClosedLoopRun:
+    """The raw record of one run: the simulator (flown tracks, landings) and the service's plans."""
+
+    scenario: Scenario
+    options: ClosedLoopOptions
+    sim: FlightSimulator
+    replans: list[Replan]
+    first: Replan
+    wall_s: float
+
+
+def planning_scenario(scenario: Scenario, wind: WindSpec, knows_wind: bool) -> Scenario:
+    """The scenario the service plans in: the mean wind if it knows it, else still air."""
+    w = wind.mean if knows_wind else (0.0, 0.0)
+    aircraft = tuple(replace(a, dynamics=a.dynamics.with_wind(*w)) for a in scenario.aircraft)
+    return replace(scenario, aircraft=aircraft, wind=tuple(w))
+
+
+class ClosedLoop:
+    """One scenario flown in closed loop; :meth:`run` returns a :class:`ClosedLoopRun`."""
+
+    def __init__(self, scenario: Scenario, options: ClosedLoopOptions | None = None) -> None:
+        self.options = opts = options or ClosedLoopOptions()
+        self.scenario = scenario
+        self.base = planning_scenario(scenario, opts.sim.wind, opts.planner_knows_wind)
+        self.scales = Scales.of(scenario)
+        self.sim = FlightSimulator(scenario, opts.sim)
+        seed = opts.sim.seed
+        self.noise = RadarNoise(opts.radar_noise_m, None if seed is None else seed + 1)
+        self.planner = Planner(opts.plan)
+        self.published: dict[str, Reference] = {}
+        self.replans: list[Replan] = []
+        self.threshold = opts.deviation_nm if opts.deviation_nm is not None else max(
+            DEVIATION_PER_SEPARATION * scenario.separation_nm,
+            DEVIATION_PER_NOISE * self.noise.sigma_nm)
+        self.min_interval = self.scales.seconds(REPLAN_INTERVAL_TURN_TIMES)
+
+    # -- the service -------------------------------------------------------------------------------------
+    def _tracks(self, truth: bool = False) -> dict[str, Track]:
+        return {ac.callsign: Track(ac.callsign, self.sim.t, ac.state.copy() if truth else self.noise.apply(ac.state),
+                                   ac.model.speed, ac.wake)
+                for ac in self.sim.measurements()}
+
+    def _plan(self, tracks: dict[str, Track], reason: str) -> tuple[Replan, PlanResult | None]:
+        t = max(tr.stamp for tr in tracks.values())
+        start = time.perf_counter()
+        result: PlanResult | None = None
+        try:
+            inputs = build_plan_scenario(self.base, tracks, t, t)
+            if not inputs.scenario.aircraft:
+                raise ValueError("no aircraft to plan (" + "; ".join(f"{k}: {v}" for k, v in inputs.left_out.items())
+                                 + ")")
+            result = self.planner.plan(inputs.scenario, start_time=t)
+            failure = result.failure
+            ok, message = failure is None, "verified" if failure is None else f"{failure[0]}: {failure[1]}"
+        except Exception as exc:  # the service keeps running: the aircraft keep their plans
+            ok, message = False, " ".join(str(exc).split()) or type(exc).__name__
+        wall = time.perf_counter() - start
+        order = []
+        if ok and result is not None:
+            times = result.landing_times()
+            order = sorted(times, key=times.__getitem__)
+        record = Replan(t, reason, wall, t, ok, message, sorted(tracks), order)
+        log.info("t=%.1f s: plan (%s) %s in %.2f s", t, reason, "verified" if ok else f"failed: {message}", wall)
+        return record, (result if ok else None)
+
+    def _predicted(self, tracks: dict[str, Track], lead: float) -> dict[str, Track]:
+        """The tracks ``lead`` seconds ahead, along the plans being flown (straight on where there is none)."""
+        out = {}
+        for cs, tr in tracks.items():
+            ref = self.published.get(cs)
+            t1 = tr.stamp + lead
+            if ref is None or not ref.start <= tr.stamp or t1 > ref.end:
+                out[cs] = Track(cs, t1, tr.at(t1), tr.speed, tr.wake)
+                continue
+            now, then = ref.sample(tr.stamp), ref.sample(t1)
+            state = then[:5].copy()
+            state[:3] += tr.state[:3] - now[:3]
+            state[3:5] += tr.state[3:5] - now[3:5]
+            out[cs] = Track(cs, t1, state, tr.speed, tr.wake)
+        return out
+
+    def _deliver(self, result: PlanResult, at: float) -> None:
+        for traj in result.landing.trajectories if result.landing else []:
+            ref = Reference(traj.t + result.start_time, traj.states)
+            self.published[traj.callsign] = ref
+            self.sim.set_plan(traj.callsign, ref, at)
+
+    def _trigger(self, tracks: dict[str, Track], since_last: float) -> str | None:
+        if since_last < self.min_interval:
+            return None
+        for cs in tracks:
+            if cs not in self.published:
+                return f"{cs} has no plan"
+        worst, who = 0.0, ""
+        for cs, tr in tracks.items():
+            ref = self.published[cs]
+            if ref.start <= tr.stamp <= ref.end:  # past its end an aircraft is about to cross the threshold
+                dev = float(np.linalg.norm(ref.position(tr.stamp) - tr.state[:3]))
+                if dev > worst:
+                    worst, who = dev, cs
+        if worst > self.threshold:
+            return f"{who} deviates {worst:.3f} nm from its plan"
+        if self.options.replan_period_s > 0 and since_last >= self.options.replan_period_s:
+            return "periodic replan"
+        return None
+
+    # -- the run ---------------------------------------------------------------------------------------------
+    def run(self) -> ClosedLoopRun:
+        opts = self.options
+        wall0 = time.perf_counter()
+        first, result = self._plan(self._tracks(truth=True), "initial plan")
+        if result is not None:
+            self._deliver(result, 0.0)
+        t_max = opts.max_time_s
+        if t_max is None:
+            last = max(result.landing_times().values()) if result is not None else max(
+                float(np.linalg.norm(a.position - self.scenario.runway_state[:3])) / a.speed * 2.0
+                for a in self.scenario.aircraft)
+            t_max = last + self.scales.seconds(OVERRUN_TURN_TIMES)
+        last_arrival = 0.0
+        pending: tuple[float, Replan, PlanResult | None] | None = None
+        next_radar = opts.radar_period_s
+        while not self.sim.done and self.sim.t < t_max:
+            if pending is not None and pending[0] <= next_radar:
+                self.sim.advance(pending[0])
+                if pending[2] is not None:
+                    self._deliver(pending[2], pending[0])
+                last_arrival, pending = pending[0], None
+                continue
+            self.sim.advance(next_radar)
+            next_radar += opts.radar_period_s
+            if pending is not None:
+                continue
+            tracks = self._tracks()
+            reason = self._trigger(tracks, self.sim.t - last_arrival) if tracks else None
+            if reason is None:
+                continue
+            latest = self.replans[-1].wall_s if self.replans else first.wall_s
+            lead = LEAD_PER_LATENCY * latest * opts.planning_time_factor
+            t_request = self.sim.t
+            record, result = self._plan(self._predicted(tracks, lead) if lead > 0 else tracks, reason)
+            record.arrived_at = t_request + record.wall_s * opts.planning_time_factor
+            self.replans.append(record)
+            pending = (record.arrived_at, record, result)
+        return ClosedLoopRun(self.scenario, opts, self.sim, self.replans, first, time.perf_counter() - wall0)
+
+
+def run_closed_loop(scenario: Scenario, options: ClosedLoopOptions | None = None) -> ClosedLoopRun:
+    """Fly ``scenario`` in closed loop (see the module docstring)."""
+    return ClosedLoop(scenario, options).run()
+
+
+def percentile(values: list[float], q: float) -> float:
+    return float(np.percentile(values, q)) if values else math.nan

@@ -1,0 +1,143 @@
+"""What a closed-loop run achieved, measured on the tracks that were actually flown.
+
+The minima are checked as the verification checks plans, with no tolerance on the unsafe side: every pair
+on the union of both aircraft's samples with the chords' error taken off (a protected sphere or cylinder, as
+the scenario says), airspace and obstacles with the chord error added. Landings are the threshold crossings
+inside the touchdown window (:mod:`mal_planner.closedloop.simulator`).
+"""
+
+from __future__ import annotations
+
+import itertools
+import math
+from dataclasses import asdict, dataclass, field
+
+import numpy as np
+
+from mal_planner.closedloop.loop import ClosedLoopRun, Replan, percentile
+from mal_planner.closedloop.simulator import LANDED, FlightSimulator
+from mal_planner.scenario import Scenario
+from mal_planner.units import nm_to_m
+from mal_planner.verification import flown_path_infringements, separation_checks
+
+
+@dataclass
+class ClosedLoopMetrics:
+    """One run's outcome: a success only when everyone landed with every minimum kept (``failures`` empty)."""
+
+    scenario: str
+    aircraft: int
+    all_landed: bool
+    landed: int
+    failures: list[str]
+    """Why the run is not a success, one line each (empty: success)."""
+    min_separation_nm: float
+    """Smallest distance of any pair while both flew (sphere), or the horizontal distance of the pair closest to
+    its protected cylinder; a lower bound (chord errors taken off)."""
+    closest_pair: str
+    separation_ratio: float
+    """Smallest distance in minima (< 1: a loss of separation)."""
+    losses_of_separation: int
+    infringements: int
+    """Airspace exits and obstacle entries on the flown tracks."""
+    landing_times_s: dict[str, float]
+    landing_spacings_s: list[float]
+    """Between successive threshold crossings. Constant-speed aircraft cannot take out along-track errors, so
+    these differ from the planned spacings by the timing errors; recorded, not a failure (a note)."""
+    min_landing_spacing_s: float
+    landing_errors_m: dict[str, float]
+    """Distance of each threshold crossing from the runway point."""
+    max_deviation_nm: float
+    """Largest distance of an aircraft from the plan it was flying."""
+    replans: int
+    replan_reasons: dict[str, int]
+    failed_replans: int
+    replan_latency_s: dict[str, float]
+    """Wall-clock planning time of the replans: median, p95, max."""
+    first_plan_s: float
+    order_changes: int
+    """Replans whose landing order differs from the previous plan's (for the aircraft in both)."""
+    wall_s: float
+    notes: list[str] = field(default_factory=list)
+
+    @property
+    def success(self) -> bool:
+        return not self.failures
+
+    def to_dict(self) -> dict:
+        return {**asdict(self), "success": self.success}
+
+
+def _reason_key(reason: str) -> str:
+    if "deviates" in reason:
+        return "deviation"
+    if "has no plan" in reason:
+        return "no plan"
+    if "plan has ended" in reason:
+        return "plan ended"
+    return reason
+
+
+def measure(run: ClosedLoopRun) -> ClosedLoopMetrics:
+    """The metrics of one closed-loop run."""
+    return measure_flight(run.scenario, run.sim, run.replans, run.first, run.wall_s)
+
+
+def measure_flight(sc: Scenario, sim: FlightSimulator, replans: list[Replan] | None = None,
+                   first: Replan | None = None, wall_s: float = math.nan) -> ClosedLoopMetrics:
+    """The metrics of a flight (the service's plan requests, when known: in the simulator node they are not)."""
+    replans = replans or []
+    failures: list[str] = []
+    flown = {cs: (t, x) for cs, (t, x) in sim.flown().items() if len(t) > 1}
+    for ac in sim.aircraft:
+        if ac.status != LANDED:
+            what = ac.status if ac.end_time is None else f"{ac.status} at t={ac.end_time:.1f} s"
+            failures.append(f"{ac.callsign}: not landed ({what}{': ' + ac.end_note if ac.end_note else ''})")
+    pair_failures: list[str] = []
+    pairs = separation_checks(flown, sc, lambda _cs, text: pair_failures.append(text))
+    failures += [f"loss of separation: {text}" for text in pair_failures]
+    infringements = 0
+    landed_here = {ac.callsign for ac in sim.aircraft if ac.status == LANDED}
+    for cs, (t, x) in flown.items():
+        if cs in landed_here and len(t) > 2:  # the touchdown lies on the runway (the airspace's floor), checked by
+            t, x = t[:-1], x[:-1]  # the touchdown window instead
+        found = flown_path_infringements(sc, sc.aircraft_by_callsign(cs), t, x)
+        infringements += len(found)
+        failures += found
+    closest = min(pairs, key=lambda p: p.min_distance_nm, default=None)
+    radius = sc.separation_nm
+    landed = {ac.callsign: float(ac.end_time) for ac in sim.aircraft if ac.status == LANDED and ac.end_time}
+    order = sorted(landed, key=landed.__getitem__)
+    spacings = [landed[b] - landed[a] for a, b in itertools.pairwise(order)]
+    notes = [f"{a}->{b}: landed {gap:.2f} s apart (planned at least {sc.landing_spacing_s:g} s)"
+             for (a, b), gap in zip(itertools.pairwise(order), spacings, strict=True) if gap < sc.landing_spacing_s]
+    errors = {ac.callsign: float(nm_to_m(np.linalg.norm(ac.states[-1][:3] - sc.runway_state[:3])))
+              for ac in sim.aircraft if ac.status == LANDED}
+    latencies = [r.wall_s for r in replans]
+    reasons: dict[str, int] = {}
+    for r in replans:
+        reasons[_reason_key(r.reason)] = reasons.get(_reason_key(r.reason), 0) + 1
+    changes, previous = 0, first.landing_order if first else []
+    for r in replans:
+        if not r.ok:
+            continue
+        common = [cs for cs in r.landing_order if cs in previous]
+        if common != [cs for cs in previous if cs in r.landing_order]:
+            changes += 1
+        previous = r.landing_order
+    ratio = math.inf
+    if closest is not None:
+        ratio = closest.min_distance_nm / radius
+    return ClosedLoopMetrics(
+        scenario=sc.name, aircraft=len(sim.aircraft), all_landed=len(landed) == len(sim.aircraft),
+        landed=len(landed), failures=failures,
+        min_separation_nm=closest.min_distance_nm if closest else math.inf,
+        closest_pair=closest.pair if closest else "", separation_ratio=ratio,
+        losses_of_separation=len(pair_failures), infringements=infringements,
+        landing_times_s=landed, landing_spacings_s=spacings, min_landing_spacing_s=min(spacings, default=math.inf),
+        landing_errors_m=errors, max_deviation_nm=max((ac.deviation_nm for ac in sim.aircraft), default=0.0),
+        replans=len(replans), replan_reasons=reasons, failed_replans=sum(not r.ok for r in replans),
+        replan_latency_s={"median": percentile(latencies, 50), "p95": percentile(latencies, 95),
+                          "max": max(latencies, default=math.nan)},
+        first_plan_s=first.wall_s if first else math.nan, order_changes=changes, wall_s=wall_s,
+        notes=notes + ([] if first is None or first.ok else [f"first plan failed: {first.message}"]))
