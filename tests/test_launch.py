@@ -49,6 +49,26 @@ def test_launch_replay_end_to_end(backend_env: dict[str, str], tmp_path: Path) -
     assert counts.get("/landing_plan", 0) >= 1
 
 
+def test_launch_closed_loop_lands_everyone(backend_env: dict[str, str], tmp_path: Path) -> None:
+    """The main job's closed loop on each backend: the simulator flies the planner's paths on /clock (the planner on
+    use_sim_time) until all three have landed, with every minimum kept on the flown tracks."""
+    out = tmp_path / "out"
+    proc = subprocess.run(
+        [sys.executable, "-m", "mal_planner.ros.launch", "--closed-loop", "--scenario",
+         str(REPO / "scenarios" / "thesis_wind.yaml"), "--sim-speed", "8", "--out", str(out), "--timeout", "150",
+         "--no-record"],
+        env=backend_env, cwd=tmp_path, capture_output=True, text=True, timeout=300, check=False)
+    assert proc.returncode == 0, proc.stdout[-5000:] + proc.stderr[-2000:]
+    assert "everyone landed, every minimum kept" in proc.stdout and "landed               3/3" in proc.stdout
+    assert "in the future" not in proc.stdout  # the planner's clock is the simulator's
+    import json
+
+    metrics = json.loads((out / "closed_loop.json").read_text(encoding="utf-8"))
+    assert metrics["success"] and metrics["separation_ratio"] > 1.0 and set(metrics["landing_times_s"]) == {
+        "A1", "A2", "A3"}
+    assert (out / "closed_loop.png").is_file()
+
+
 def test_loopback_config_only_when_unset(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
     from mal_planner.ros.launch import child_env, parse_args
 

@@ -7,18 +7,18 @@ from pathlib import Path
 
 import numpy as np
 
-from mal_planner.closedloop.loop import ClosedLoopRun
+from mal_planner.closedloop.simulator import FlightSimulator
+from mal_planner.scenario import Scenario
 
 
-def figure_closed_loop(run: ClosedLoopRun, path: Path) -> Path:
-    """Left: plan view (flown tracks solid, every plan they were given dashed, replan arrivals as dots, the
-    obstacles' footprints); right: the smallest distance to any other aircraft over time, with the minimum."""
+def figure_closed_loop(sc: Scenario, sim: FlightSimulator, path: Path) -> Path:
+    """Left: plan view (flown tracks solid, every plan they were given dashed, a dot where a new plan began to be
+    flown, the obstacles' footprints); right: the distance of each pair over time, with the minimum."""
     from mal_planner.figures.style import OBSTACLE_COLOR, RUNWAY_COLOR, WIDTH_IN, apply_style, color_map, save
 
     apply_style()
     import matplotlib.pyplot as plt
 
-    sc, sim = run.scenario, run.sim
     colors = color_map([ac.callsign for ac in sim.aircraft])
     fig, (ax, ax_sep) = plt.subplots(1, 2, figsize=(WIDTH_IN * 1.6, WIDTH_IN * 0.7),
                                      gridspec_kw={"width_ratios": [1.2, 1.0]})
@@ -53,11 +53,11 @@ def figure_closed_loop(run: ClosedLoopRun, path: Path) -> Path:
         mine = np.column_stack([np.interp(t, ta, xa[:, k]) for k in range(3)])
         ax_sep.plot(t, np.linalg.norm(mine - other, axis=1), lw=1.0, label=f"{a}-{b}")
     ax_sep.axhline(sc.separation_nm, color="#d62728", lw=1.0, ls="--", label="minimum")
-    for r in run.replans:
-        ax_sep.axvline(r.arrived_at, color="k", lw=0.4, alpha=0.3)
+    for t_new in sorted({t for ac in sim.aircraft for t in ac.plan_arrivals[1:]}):
+        ax_sep.axvline(t_new, color="k", lw=0.4, alpha=0.3)
     ax_sep.set_xlabel("t (s)")
     ax_sep.set_ylabel("distance (nm)")
-    ax_sep.set_title("distance of each pair (grey: replans arriving)")
+    ax_sep.set_title("distance of each pair (grey: a new plan flown)")
     if len(flown) <= 8:
         ax_sep.legend(fontsize=7, loc="best")
     fig.tight_layout()

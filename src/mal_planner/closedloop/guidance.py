@@ -16,8 +16,8 @@ where the aircraft should be at each moment. The law, per aircraft and control s
 
 The time constants are fractions of the scenario's turn time T (the time to turn one radian at the bank
 limit; :mod:`mal_planner.scales`): T_a = T/4 and T_p = T/2 (a cross-track error then decays with damping
-0.71), so the same law flies the thesis's box and a terminal area. Without a plan, or after its end, the
-aircraft holds its heading and levels off.
+0.71), so the same law flies the thesis's box and a terminal area. Without a plan the aircraft holds its heading
+and levels off; after its plan's end (an aircraft running late) it flies on along the plan's final line.
 """
 
 from __future__ import annotations
@@ -60,7 +60,14 @@ class Reference:
         return float(self.t[-1])
 
     def sample(self, t: float) -> np.ndarray:
-        """Row [x, y, z, gamma, heading, vx, vy, vz, gamma', heading'] at ``t`` (clamped to the plan)."""
+        """Row [x, y, z, gamma, heading, vx, vy, vz, gamma', heading'] at ``t``; before the plan its start, after
+        it the final state carried on along its final velocity (a late aircraft flies on down the runway's
+        centreline, the extended final approach, instead of drifting with the wind)."""
+        if t > self.t[-1]:
+            row = self.table[-1].copy()
+            row[:3] += (t - self.t[-1]) * row[5:8]
+            row[8:10] = 0.0
+            return row
         k = int(np.clip(np.searchsorted(self.t, t) - 1, 0, len(self.t) - 2))
         t0, t1 = self.t[k], self.t[k + 1]
         w = min(max((t - t0) / (t1 - t0), 0.0), 1.0)
@@ -106,7 +113,7 @@ def guidance_controls(model: DynamicsModel, limits: ControlLimits, gains: Guidan
     v, g = model.speed, model.gravity
     gamma, heading = float(state[3]), float(state[4])
     cos_g = math.cos(gamma)
-    if reference is None or t > reference.end:
+    if reference is None:
         gamma_rate, heading_rate = -gamma / gains.attitude_s, 0.0
     else:
         r = reference.sample(t)

@@ -26,6 +26,7 @@ import numpy as np
 from mal_planner.closedloop.disturbances import RadarNoise, WindSpec
 from mal_planner.closedloop.guidance import Reference
 from mal_planner.closedloop.simulator import FlightSimulator, SimOptions
+from mal_planner.landing.problem import SafetyMargins
 from mal_planner.pipeline import Planner, PlanOptions, PlanResult
 from mal_planner.ros.plan_scenario import build_plan_scenario
 from mal_planner.ros.state_store import Track
@@ -67,6 +68,9 @@ class ClosedLoopOptions:
     """Simulated seconds charged per wall-clock second of planning (1: honest; 0: planning takes no time)."""
     max_time_s: float | None = None
     """End of the run; None: the first plan's last landing plus OVERRUN_TURN_TIMES turn times."""
+    tracking_margins: bool = True
+    """Plan with safety margins sized to the deviations the replan rule lets pass (see :func:`tracking_margins`);
+    False: the open-loop planner's margins (sized to the plan's own accuracy only)."""
 
 
 @dataclass
@@ -103,6 +107,14 @@ def planning_scenario(scenario: Scenario, wind: WindSpec, knows_wind: bool) -> S
     return replace(scenario, aircraft=aircraft, wind=tuple(w))
 
 
+def tracking_margins(margins: SafetyMargins, scales: Scales, threshold_nm: float) -> SafetyMargins:
+    """The optimizer's margins for plans that are flown: an aircraft may stray up to the replan threshold before
+    the service replans, so the separation keeps that much more (two aircraft each half of it towards the other).
+    Obstacles and the airspace keep the open-loop margins: inflated by the threshold, the holes of the walls would
+    leave no room (a 0.09-nm hole against 0.05 nm), and the runway lies on the airspace's floor."""
+    return replace(margins, separation=max(margins.separation, threshold_nm / scales.accuracy_nm))
+
+
 class ClosedLoop:
     """One scenario flown in closed loop; :meth:`run` returns a :class:`ClosedLoopRun`."""
 
@@ -114,12 +126,16 @@ class ClosedLoop:
         self.sim = FlightSimulator(scenario, opts.sim)
         seed = opts.sim.seed
         self.noise = RadarNoise(opts.radar_noise_m, None if seed is None else seed + 1)
-        self.planner = Planner(opts.plan)
         self.published: dict[str, Reference] = {}
         self.replans: list[Replan] = []
         self.threshold = opts.deviation_nm if opts.deviation_nm is not None else max(
             DEVIATION_PER_SEPARATION * scenario.separation_nm,
             DEVIATION_PER_NOISE * self.noise.sigma_nm)
+        plan = opts.plan
+        if opts.tracking_margins:
+            margins = tracking_margins(plan.landing.margins, self.scales, self.threshold)
+            plan = replace(plan, landing=replace(plan.landing, margins=margins))
+        self.planner = Planner(plan)
         self.min_interval = self.scales.seconds(REPLAN_INTERVAL_TURN_TIMES)
 
     # -- the service -------------------------------------------------------------------------------------

@@ -2,6 +2,13 @@
 
     mal-launch --replay data/thesis_radar.mcap --out out/main     # main job: replay, plan, record, stop
     mal-launch --simulate --duration 60 --out out/sim             # radar simulator instead of a bag
+    mal-launch --closed-loop --scenario scenarios/thesis_wind.yaml --out out/cl   # aircraft fly the plans
+
+``--closed-loop`` runs the flight simulator (:mod:`mal_planner.ros.radar_sim`) as the radar source: its aircraft
+fly the published plans under guidance, in the scenario's wind plus gusts, and it publishes ``/clock``; the
+planner runs with ``use_sim_time`` (so the simulation may run faster than real time, ``--sim-speed``, while
+planning time counts in full), replans when a track strays a fifth of the separation from its plan, and the run
+ends when every aircraft has landed, with the simulator's summary of what was flown.
 
 Each part runs as its own process (``python -m mal_planner.ros.<part>``); their output is prefixed with
 the part's name and also written to ``<out>/logs/<part>.log``. SIGINT/SIGTERM are forwarded to the
@@ -129,6 +136,8 @@ def parse_args(argv: list[str] | None = None) -> argparse.Namespace:
     src = p.add_mutually_exclusive_group(required=True)
     src.add_argument("--replay", metavar="BAG", help="replay recorded radar tracks from this bag")
     src.add_argument("--simulate", action="store_true", help="run the radar simulator on the scenario")
+    src.add_argument("--closed-loop", action="store_true",
+                     help="the simulated aircraft fly the plans until everyone has landed (simulated time)")
     p.add_argument("--scenario", default=None, help="scenario YAML (default scenarios/thesis.yaml)")
     p.add_argument("--params", default=None, help="planner params YAML (default config/planner.params.yaml)")
     p.add_argument("--out", default="out/main", help="output folder (default out/main)")
@@ -139,12 +148,17 @@ def parse_args(argv: list[str] | None = None) -> argparse.Namespace:
     p.add_argument("--restamp", action="store_true", help="replay: shift stamps to the publish time")
     p.add_argument("--sim-rate", type=float, default=2.0, help="simulator rate [Hz] (default 2)")
     p.add_argument("--duration", type=float, default=0.0, help="simulator duration [s], 0 = until Ctrl-C")
+    p.add_argument("--sim-speed", type=float, default=4.0,
+                   help="closed loop: simulated seconds per wall-clock second (default 4; 1 = real time)")
+    p.add_argument("--gust-kt", type=float, default=1.0, help="closed loop: gusts, rms per axis [kt] (default 1)")
+    p.add_argument("--noise-m", type=float, default=10.0, help="closed loop: radar noise sigma [m] (default 10)")
     p.add_argument("--timeout", type=float, default=300.0,
                    help="after the radar source ended, wait this long for the plan (default 300 s)")
     p.add_argument("--keep-running", action="store_true", help="do not stop when the radar source ends")
     args = p.parse_args(argv)
-    if args.rate < 0 or args.sim_rate <= 0 or args.duration < 0 or args.timeout <= 0:
-        p.error("--rate, --duration must be >= 0; --sim-rate, --timeout > 0")
+    if args.rate < 0 or args.sim_rate <= 0 or args.duration < 0 or args.timeout <= 0 or args.sim_speed <= 0 \
+            or args.gust_kt < 0 or args.noise_m < 0:
+        p.error("--rate, --duration, --gust-kt, --noise-m must be >= 0; --sim-rate, --sim-speed, --timeout > 0")
     return args
 
 
@@ -172,6 +186,28 @@ def summary_table(status: dict[str, Any]) -> str:
         rows.append(f"{ac['order']:>5}  {ac['callsign']:<8} {ac['landing_time_s']:>11.2f}  "
                     f"{'yes' if ac['verified'] else 'no'}")
     return "\n".join(rows)
+
+
+def closed_loop_params(params: str, scenario: str, out: Path) -> str:
+    """The planner's params file for a closed loop: the given one, on simulated time, planning once every aircraft
+    is tracked, replanning when a track strays a fifth of the separation from its plan (no sooner than a turn time
+    after the last plan: :mod:`mal_planner.closedloop.loop`'s rules)."""
+    import yaml
+
+    from mal_planner.closedloop.loop import DEVIATION_PER_SEPARATION, REPLAN_INTERVAL_TURN_TIMES
+    from mal_planner.scales import Scales
+    from mal_planner.scenario import load_scenario
+    from mal_planner.units import METRES_PER_NM
+
+    sc = load_scenario(scenario)
+    data = yaml.safe_load(Path(params).read_text(encoding="utf-8")) or {}
+    values = data.setdefault("planner", {}).setdefault("ros__parameters", {})
+    values.update(use_sim_time=True, settle_time_s=0.0,
+                  deviation_threshold_m=DEVIATION_PER_SEPARATION * sc.separation_nm * METRES_PER_NM,
+                  min_replan_interval_s=Scales.of(sc).seconds(REPLAN_INTERVAL_TURN_TIMES))
+    path = out / "planner.closed_loop.params.yaml"
+    path.write_text(yaml.safe_dump(data), encoding="utf-8")
+    return str(path)
 
 
 class Launcher:
@@ -231,7 +267,9 @@ class Launcher:
         (self.out / "logs").mkdir(exist_ok=True)
         (self.out / STATUS_FILE).unlink(missing_ok=True)
         env = child_env(self.out)
-        finite = not a.keep_running and (a.replay is not None or a.duration > 0)
+        finite = not a.keep_running and (a.replay is not None or a.duration > 0 or a.closed_loop)
+        if a.closed_loop:
+            params = closed_loop_params(params, scenario, self.out)
         print(f"launch: scenario {scenario}, params {params}, out {self.out}, record {bag or 'off'}, "
               f"CYCLONEDDS_URI {env['CYCLONEDDS_URI']}, ROS_DOMAIN_ID {env.get('ROS_DOMAIN_ID', '0')}", flush=True)
         if bag is not None:
@@ -246,6 +284,12 @@ class Launcher:
             source = self._start("replay", ["mal_planner.ros.replay", a.replay, "--rate", str(a.rate),
                                             "--wait-for-subscribers", "10", *(["--restamp"] if a.restamp else [])],
                                  env)
+        elif a.closed_loop:
+            source = self._start("radar_sim", ["mal_planner.ros.radar_sim", "--scenario", scenario, "--rate",
+                                               str(a.sim_rate), "--speed", str(a.sim_speed), "--clock",
+                                               "--wait-for-plan", str(a.timeout), "--until-landed", "--gust-kt",
+                                               str(a.gust_kt), "--noise-m", str(a.noise_m), "--seed", "0",
+                                               "--topics", "shared", "--out", str(self.out)], env)
         else:
             source = self._start("radar_sim", ["mal_planner.ros.radar_sim", "--scenario", scenario, "--rate",
                                                str(a.sim_rate), "--duration", str(a.duration)], env)

@@ -183,6 +183,10 @@ class NodeParams:
 assert {f.name for f in fields(NodeParams)} == set(PARAMETERS)
 
 
+ROS_STANDARD = frozenset({"use_sim_time"})
+"""Parameters every ROS 2 node has (the node's clock follows /clock when use_sim_time is true)."""
+
+
 def read_params_file(path: str | Path | None, node_name: str, namespace: str, log: logging.Logger) -> dict[str, Any]:
     """Overrides from a ROS 2 params YAML; a missing or malformed file is logged (one line) and ignored."""
     if not path:
@@ -195,9 +199,10 @@ def read_params_file(path: str | Path | None, node_name: str, namespace: str, lo
     except Exception as exc:  # yaml errors and malformed structures
         log.error("params file %s: invalid (%s); using defaults", path, " ".join(str(exc).split()))
         return {}
-    for name in sorted(set(values) - set(PARAMETERS)):
+    known = set(PARAMETERS) | ROS_STANDARD
+    for name in sorted(set(values) - known):
         log.warning("params file %s: unknown parameter %r (ignored)", path, name)
-    return {k: v for k, v in values.items() if k in PARAMETERS}
+    return {k: v for k, v in values.items() if k in known}
 
 
 #: Parameters that only take effect at start-up (the radar subscriptions are created with this QoS).

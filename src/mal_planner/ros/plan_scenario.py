@@ -91,7 +91,7 @@ def build_plan_scenario(base: Scenario, tracks: Mapping[str, Track], plan_start:
         try:
             known = base.aircraft_by_callsign(cs)
         except KeyError:
-            dyn = make_dynamics(DEFAULT_MODEL, tr.speed, gravity=base.gravity)
+            dyn = make_dynamics(DEFAULT_MODEL, tr.speed, gravity=base.gravity, wind_x=base.wind[0], wind_y=base.wind[1])
             aircraft.append(Aircraft(cs, state, dyn, default_limits, tr.wake, None))
             continue
         landing = None if known.landing_time is None else known.landing_time - landing_shift
@@ -107,7 +107,8 @@ def build_plan_scenario(base: Scenario, tracks: Mapping[str, Track], plan_start:
 
 
 def _min_time(a: Aircraft, runway: np.ndarray) -> float:
-    return MIN_TIME_FACTOR * float(np.linalg.norm(a.position - runway)) / a.speed
+    """Straight to the runway at the best crab (in the wind its model carries)."""
+    return MIN_TIME_FACTOR * float(a.dynamics.air_distance(runway - a.position)) / a.speed
 
 
 def _feasible_landing_times(aircraft: list[Aircraft], runway: np.ndarray, spacing: float,

@@ -139,7 +139,10 @@ class PlannerNode:
         self._radar: Counter[str] = Counter()  # intake counts for the radar status
         self._rejected_reported = 0
         self._radar_status_at = -math.inf
-        self._newest_rx = time.monotonic()  # when the newest radar stamp arrived
+        # Scheduling (settle time, replan intervals, how far radar time may run ahead) follows the node's clock with
+        # use_sim_time (a simulator's /clock, which may run faster than the wall clock), else the monotonic clock.
+        self._clock = self.node.now if self.node.uses_sim_time else time.monotonic
+        self._newest_rx = self._clock()  # when the newest radar stamp arrived
         self._jumps: dict[str, tuple[Track, int]] = {}  # a refused jump and how many agree with it
         self._diag_lock = threading.Lock()
         self._plan_status: Any = None
@@ -224,10 +227,10 @@ class PlannerNode:
             callsign, stamp, state, speed, wake = aircraft_state_to_planner(msg)
             track = Track(callsign, stamp, state, speed, wake)
             newest = self.tracks.latest_stamp()
-            ahead = None if newest is None else AHEAD_TOLERANCE_S + time.monotonic() - self._newest_rx
+            ahead = None if newest is None else AHEAD_TOLERANCE_S + self._clock() - self._newest_rx
             reason = check_track(track, str(msg.header.frame_id), self.params.frame_id, self.scenario.airspace,
                                  expected_speed=self._scenario_speed(callsign), newest=newest,
-                                 timeout_s=self.params.track_timeout_s, now=time.time(), max_ahead_s=ahead,
+                                 timeout_s=self.params.track_timeout_s, now=self.node.now(), max_ahead_s=ahead,
                                  previous=self.tracks.get(callsign), jump_tol_nm=self.scenario.separation_nm)
         except Exception as exc:  # malformed message
             self._reject("malformed", topic, f"bad AircraftState on {topic}: {exc} (ignored)")
@@ -249,12 +252,12 @@ class PlannerNode:
             return
         self._radar["accepted"] += 1
         if newest is None or stamp > newest:
-            self._newest_rx = time.monotonic()
+            self._newest_rx = self._clock()
         if callsign not in self._state_subs and callsign not in self._new_aircraft:
             log.info("new aircraft %s on %s (wake %s)", callsign, topic, wake or "?")
             self._new_aircraft.append(callsign)  # its topics are made in the tick, not in this callback
         if self._first_rx is None:
-            self._first_rx = time.monotonic()
+            self._first_rx = self._clock()
             self._epoch = stamp
             log.info("first radar message (%s, t=%.3f); first plan in %.1f s", callsign, stamp,
                      self.params.settle_time_s)
@@ -275,7 +278,7 @@ class PlannerNode:
         cur = self._current
         if cur is None or not cur.from_radar or self._busy or self._pending():
             return
-        if time.monotonic() - self._last_done < self.params.min_replan_interval_s:
+        if self._clock() - self._last_done < self.params.min_replan_interval_s:
             return
         traj = cur.trajectories.get(track.callsign)
         if traj is None:
@@ -305,7 +308,7 @@ class PlannerNode:
 
     def _tick(self) -> None:
         p = self.params
-        now = time.monotonic()
+        now = self._clock()
         while self._new_aircraft:
             self._ensure_aircraft(self._new_aircraft.pop(0))
         if now - self._radar_status_at >= RADAR_STATUS_PERIOD_S:
@@ -368,7 +371,7 @@ class PlannerNode:
                 outcome = PlanOutcome(False, f"planning failed: {exc}")
             with self._lock:
                 self._busy = False
-                self._last_done = time.monotonic()
+                self._last_done = self._clock()
                 self._attempts += 1
                 self._last_error = "" if outcome.success else outcome.message
             self._write_status()
@@ -638,7 +641,7 @@ class PlannerNode:
         """One DiagnosticArray: the plan's status first, then the radar's (as a diagnostic_updater would)."""
         T = self.types
         with self._diag_lock:
-            header = T.msg("std_msgs/msg/Header")(stamp=time_to_msg(T, time.time()), frame_id="")
+            header = T.msg("std_msgs/msg/Header")(stamp=time_to_msg(T, self.node.now()), frame_id="")
             self.diag_pub.publish(T.msg("diagnostic_msgs/msg/DiagnosticArray")(
                 header=header, status=[self._plan_status, self._radar_status()]))
 

@@ -178,9 +178,12 @@ def _report(scenario: Scenario, sim: FlightSimulator, out: str | None, wall_s: f
     metrics = measure_flight(scenario, sim, wall_s=wall_s)
     print("\n".join(summary_lines(metrics, planner_side=False)), flush=True)
     if out:
+        from mal_planner.closedloop.figure import figure_closed_loop
+
         Path(out).mkdir(parents=True, exist_ok=True)
         (Path(out) / "closed_loop.json").write_text(json.dumps(metrics.to_dict(), default=float, indent=1),
                                                     encoding="utf-8")
+        figure_closed_loop(scenario, sim, Path(out) / "closed_loop.png")
     return 0 if metrics.success else 1
 
 

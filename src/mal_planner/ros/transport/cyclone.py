@@ -347,6 +347,10 @@ class CycloneNode:
         if start_parameter_services:
             self._interfaces = NodeInterfaces(self, self._params)
             self.forward_logs(self._logger.logger)
+        # use_sim_time, as every rclpy node has it: the node's time is the last one received on /clock.
+        self._sim_now: float | None = None
+        if bool(self.declare_parameter("use_sim_time", bool(overrides.get("use_sim_time", False))).value):
+            self.create_subscription("rosgraph_msgs/msg/Clock", "/clock", self._on_clock, QoSProfile(depth=1))
 
     # -- names, logging, parameters, time ------------------------------------------------------------
     def get_name(self) -> str:
@@ -389,8 +393,17 @@ class CycloneNode:
         if self._interfaces is not None:
             self._interfaces.parameter_event(changed=[self._params.get(name)])
 
+    def _on_clock(self, msg: Any) -> None:
+        self._sim_now = float(msg.clock.sec) + 1e-9 * float(msg.clock.nanosec)
+
+    @property
+    def uses_sim_time(self) -> bool:
+        return bool(self.get_parameter("use_sim_time").value)
+
     def now(self) -> float:
-        """Wall-clock time [s since the epoch]."""
+        """The node's time [s since the epoch]: the wall clock, or with use_sim_time the last /clock (0 before)."""
+        if self.uses_sim_time:
+            return self._sim_now or 0.0
         return time.time()
 
     def time_msg(self, stamp: float | None = None) -> Any:

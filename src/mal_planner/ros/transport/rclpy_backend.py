@@ -222,6 +222,10 @@ class RclpyNode:
     def set_parameter(self, name: str, value: Any) -> None:
         self.node.set_parameters([RclpyParameter(name, value=value)])
 
+    @property
+    def uses_sim_time(self) -> bool:
+        return bool(self.node.get_parameter("use_sim_time").value)
+
     def now(self) -> float:
         return float(self.node.get_clock().now().nanoseconds) * 1e-9
 
@@ -251,7 +255,11 @@ class RclpyNode:
         return RclpyClient(self, self.node.create_client(self._cls(srv_type, "srv"), name))
 
     def create_timer(self, period_sec: float, callback: Any) -> Any:
-        return self.node.create_timer(period_sec, callback)
+        """A timer on the steady (wall) clock, as on the built-in backend: our timers schedule housekeeping, which
+        must go on while a simulator holds /clock (rclpy's default, the ROS clock, stops with use_sim_time)."""
+        from rclpy.clock import Clock, ClockType
+
+        return self.node.create_timer(period_sec, callback, clock=Clock(clock_type=ClockType.STEADY_TIME))
 
     def destroy_entity(self, ent: Any) -> None:
         if isinstance(ent, RclpyClient):
