@@ -168,3 +168,26 @@ def test_simulator_clock_drives_an_rclpy_node_with_use_sim_time(dds_env: dict[st
     assert out.returncode == 0, out.stderr[-2000:]
     ratio = float(out.stdout.strip().splitlines()[-1])
     assert 3.0 < ratio < 7.0  # the node's ROS time runs at the simulator's 5x, not the wall clock's 1x
+
+
+def test_reference_carries_on_along_its_final_line() -> None:
+    t = np.array([0.0, 10.0, 20.0])
+    states = np.array([[0.0, 2.0, 0.1, 0.0, -math.pi / 2], [0.0, 1.6, 0.1, 0.0, -math.pi / 2],
+                       [0.0, 1.2, 0.1, 0.0, -math.pi / 2]])
+    ref = Reference(t, states)
+    np.testing.assert_allclose(ref.position(5.0), [0.0, 1.8, 0.1])
+    np.testing.assert_allclose(ref.position(30.0), [0.0, 0.8, 0.1])  # 0.04 nm/s on past the end
+    np.testing.assert_allclose(ref.position(-5.0), [0.0, 2.0, 0.1])  # before the start: the start
+
+
+def test_flown_plans_keep_the_replan_threshold_as_separation_margin() -> None:
+    from mal_planner.closedloop.loop import ClosedLoop
+
+    scenario = load_scenario(THESIS)
+    loop = ClosedLoop(scenario, ClosedLoopOptions(radar_noise_m=30.0))
+    margins = loop.planner.options.landing.margins.in_nm(Scales.of(scenario))
+    assert loop.threshold == pytest.approx(max(0.2 * 0.25, 6 * 30.0 / 1852.0))
+    assert margins.separation_nm == pytest.approx(loop.threshold)
+    # obstacles and the airspace keep the open-loop margins (the runway lies on the airspace's floor)
+    open_loop = PlanOptions().landing.margins.in_nm(Scales.of(scenario))
+    assert margins.obstacle_nm == open_loop.obstacle_nm and margins.airspace_nm == open_loop.airspace_nm
