@@ -234,6 +234,15 @@ zone = lambda **kw: T.msg("mal_msgs/msg/NoFlyZone")(name=kw.get("name", "storm")
 if %(nfz)r:
     nfz.publish(zone(p=3))
     nfz.publish(zone(name="storm"))
+    from mal_planner.ros.convert import wind_msg
+    wind = node.create_publisher("geometry_msgs/msg/Vector3Stamped", "wind", 10)
+    deadline = time.monotonic() + 10
+    while wind.get_subscription_count() < 1 and time.monotonic() < deadline:
+        time.sleep(0.05)
+    bad_wind = wind_msg(T, 1.0e9, [0.0, -0.005])
+    bad_wind.header.frame_id = "map"
+    wind.publish(bad_wind)
+    wind.publish(wind_msg(T, 1.0e9, [0.0, -10.0 / 3600.0]))  # 10 kt blowing south: from heading 90 deg
 time.sleep(0.5)
 print("published", flush=True)
 """
@@ -364,6 +373,8 @@ def test_bad_input_is_logged_and_ignored(backend_snippet, snippet, tmp_path: Pat
     assert "'FRM1'" in text and "unknown frame 'map'" in text
     assert "'KTS1'" in text and "m/s (units?)" in text
     assert "bad NoFlyZone" in text and "p must be an even integer" in text
+    wait_for(planner, "wind 10.0 kt from heading 90 deg", 20)
+    assert "bad wind on wind: frame 'map', expected 'runway'" in "\n".join(planner.output)
     assert "'A1'" in text and "implausible for this aircraft" in text
     assert "'LOW1'" in text and "below the airspace floor" in text
     assert "'FUT1'" in text and "in the future" in text

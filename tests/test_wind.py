@@ -168,3 +168,30 @@ def test_a_true_wind_direction_on_a_geodetic_runway() -> None:
         assert sc.wind == pytest.approx(expected, abs=1e-9 * speed)
         assert all(tuple(ac.dynamics.wind) == sc.wind for ac in sc.aircraft)
     assert load_scenario(GEODETIC).wind == (0.0, 0.0)
+
+
+def test_a_wind_given_at_run_time_reaches_every_aircraft_and_too_strong_a_wind_leaves_one_out() -> None:
+    """The node's ``wind`` topic: ``Scenario.with_wind`` puts the wind into every model; an aircraft whose airspeed
+    is not above it is left out of the plan with the reason (it could not make way towards the runway)."""
+    from mal_planner.ros.convert import wind_msg, wind_to_planner
+    from mal_planner.ros.plan_scenario import build_plan_scenario
+    from mal_planner.ros.state_store import Track
+    from mal_planner.ros.transport.cyclone import MessageTypes
+
+    sc = load_scenario(THESIS)
+    wind = (0.0, -kt_to_nm_per_s(10.0))
+    windy = sc.with_wind(wind)
+    assert windy.wind == wind
+    assert all(a.dynamics.wind_y == wind[1] and a.dynamics.wind_x == 0.0 for a in windy.aircraft)
+    assert sc.with_wind((0.0, 0.0)).aircraft[0].dynamics == sc.aircraft[0].dynamics  # still air: as loaded
+    msg = wind_msg(MessageTypes(), 5.0, wind)
+    assert wind_to_planner(msg, "runway") == pytest.approx(wind, abs=1e-15)
+    msg.vector.z = 1.0
+    with pytest.raises(ValueError, match="vertical"):
+        wind_to_planner(msg, "runway")
+    slow = Track("SLOW", 0.0, np.array([0.0, 5.0, 0.2, 0.0, -np.pi / 2]), kt_to_nm_per_s(8.0))
+    a1 = sc.aircraft_by_callsign("A1")
+    tracks = {"A1": Track("A1", 0.0, a1.state0.copy(), a1.speed), "SLOW": slow}
+    inputs = build_plan_scenario(windy, tracks, 0.0, landing_shift=0.0)
+    assert [a.callsign for a in inputs.scenario.aircraft] == ["A1"]
+    assert "not below its horizontal airspeed" in inputs.left_out["SLOW"]

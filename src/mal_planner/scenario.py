@@ -504,6 +504,13 @@ class Scenario:
         gamma, track = float(self.runway_state[3]), float(self.runway_state[4])
         return math.hypot(float(aircraft.dynamics.ground_speed_along(track, gamma)), aircraft.speed * math.sin(gamma))
 
+    def with_wind(self, wind: tuple[float, float]) -> Scenario:
+        """This scenario in another constant wind (w_x, w_y) [nm/s]: every aircraft's model carries it. The caller
+        checks that it is below every airspeed (:func:`wind_error`)."""
+        wx, wy = float(wind[0]), float(wind[1])
+        aircraft = tuple(replace(a, dynamics=a.dynamics.with_wind(wx, wy)) for a in self.aircraft)
+        return replace(self, aircraft=aircraft, wind=(wx, wy))
+
     def aircraft_by_callsign(self, callsign: str) -> Aircraft:
         for ac in self.aircraft:
             if ac.callsign == callsign:

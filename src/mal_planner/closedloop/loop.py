@@ -102,9 +102,7 @@ class ClosedLoopRun:
 
 def planning_scenario(scenario: Scenario, wind: WindSpec, knows_wind: bool) -> Scenario:
     """The scenario the service plans in: the mean wind if it knows it, else still air."""
-    w = wind.mean if knows_wind else (0.0, 0.0)
-    aircraft = tuple(replace(a, dynamics=a.dynamics.with_wind(*w)) for a in scenario.aircraft)
-    return replace(scenario, aircraft=aircraft, wind=tuple(w))
+    return scenario.with_wind(tuple(wind.mean) if knows_wind else (0.0, 0.0))
 
 
 def tracking_margins(margins: SafetyMargins, scales: Scales, threshold_nm: float) -> SafetyMargins:

@@ -32,6 +32,8 @@ __all__ = [
     "pose_from_state",
     "quaternion_from_euler",
     "time_to_msg",
+    "wind_msg",
+    "wind_to_planner",
 ]
 
 _NS_PER_S = 1_000_000_000
@@ -76,6 +78,27 @@ def aircraft_state_to_planner(msg: Any) -> tuple[str, float, np.ndarray, float, 
     )  # fmt: skip
     wake = str(msg.wake_category) or None
     return str(msg.callsign), msg_to_time(msg), state, m_per_s_to_nm_per_s(float(msg.speed)), wake
+
+
+def wind_to_planner(msg: Any, frame: str) -> tuple[float, float]:
+    """``geometry_msgs/Vector3Stamped`` wind (the air's velocity over the ground, m/s, ENU in ``frame``) ->
+    ``(w_x, w_y)`` nm/s; ValueError (one line) for another frame, a non-finite or a vertical component."""
+    if str(msg.header.frame_id) != frame:
+        raise ValueError(f"frame {msg.header.frame_id!r}, expected {frame!r}")
+    v = msg.vector
+    wx, wy, wz = float(v.x), float(v.y), float(v.z)
+    if not all(math.isfinite(c) for c in (wx, wy, wz)):
+        raise ValueError("non-finite component")
+    if wz != 0.0:
+        raise ValueError(f"vertical component {wz:g} m/s (the planner's wind is horizontal)")
+    return m_per_s_to_nm_per_s(wx), m_per_s_to_nm_per_s(wy)
+
+
+def wind_msg(types: Any, t_s: float, wind_nm_s: Sequence[float], frame: str = PLANNER_FRAME) -> Any:
+    """``geometry_msgs/Vector3Stamped`` [m/s] of a planner wind (w_x, w_y) [nm/s]."""
+    vec = types.msg("geometry_msgs/msg/Vector3")(x=nm_per_s_to_m_per_s(float(wind_nm_s[0])),
+                                                 y=nm_per_s_to_m_per_s(float(wind_nm_s[1])), z=0.0)
+    return types.msg("geometry_msgs/msg/Vector3Stamped")(header=_header(types, t_s, frame), vector=vec)
 
 
 def planner_to_aircraft_state(

@@ -14,7 +14,7 @@ from mal_planner.initializer.schedule import vertical_escape_problem
 from mal_planner.obstacles import Superquadric
 from mal_planner.ros.state_store import Track
 from mal_planner.scenario import Aircraft, Scenario
-from mal_planner.units import m_to_nm
+from mal_planner.units import m_to_nm, nm_per_s_to_kt
 
 DEFAULT_MODEL = "point_mass"
 AIRSPACE_TOL_NM = 0.05
@@ -87,6 +87,11 @@ def build_plan_scenario(base: Scenario, tracks: Mapping[str, Track], plan_start:
         state[:3] = np.clip(pos, lo, hi)
         if base.collides(state[:3]):
             left_out[cs] = "inside an obstacle at the plan start"
+            continue
+        wind = math.hypot(*base.wind)
+        if wind > 0.0 and wind >= tr.speed * math.cos(state[3]):
+            left_out[cs] = (f"the wind ({nm_per_s_to_kt(wind):.0f} kt) is not below its horizontal airspeed "
+                            f"({nm_per_s_to_kt(tr.speed * math.cos(state[3])):.0f} kt)")
             continue
         try:
             known = base.aircraft_by_callsign(cs)

@@ -29,7 +29,7 @@ import numpy as np
 
 from mal_planner.dynamics import bank_angle
 from mal_planner.pipeline import Planner, PlanResult
-from mal_planner.ros.convert import aircraft_state_to_planner, byte_field, path_msg, time_to_msg
+from mal_planner.ros.convert import aircraft_state_to_planner, byte_field, path_msg, time_to_msg, wind_to_planner
 from mal_planner.ros.markers import marker_array
 from mal_planner.ros.node_params import NodeParams, declare_parameters, describe, read_params_file, update_params
 from mal_planner.ros.plan_scenario import NoFlyZoneError, PlanInputs, apply_no_fly_zone, build_plan_scenario
@@ -37,7 +37,7 @@ from mal_planner.ros.state_store import AHEAD_TOLERANCE_S, CALLSIGN_RE, Track, T
 from mal_planner.ros.transport import QOS_DEFAULT, QOS_LATCHED, QoSProfile, create_node
 from mal_planner.scenario import Scenario, ScenarioError, load_scenario
 from mal_planner.trajectory import Trajectory
-from mal_planner.units import METRES_PER_NM
+from mal_planner.units import METRES_PER_NM, nm_per_s_to_kt
 
 NODE_NAME = "planner"
 STATE_TYPE = "mal_msgs/msg/AircraftState"
@@ -114,6 +114,8 @@ class PlannerNode:
         self.types = self.node.types
         self.scenario = scenario
         self.obstacles = scenario.obstacles
+        self.wind: tuple[float, float] = scenario.wind
+        """The wind plans are made in (nm/s, local frame): the scenario's until a message on ``wind`` says otherwise."""
         self.planner = Planner(self.params.plan_options())
         self.tracks = TrackStore()
         self.out_dir = Path(self.params.output_dir) if self.params.output_dir else None
@@ -168,6 +170,7 @@ class PlannerNode:
         node.create_subscription(STATE_TYPE, "radar/tracks", lambda m: self._on_state(m, "radar/tracks"),
                                  self.radar_qos)
         node.create_subscription("mal_msgs/msg/NoFlyZone", "airspace/no_fly_zones", self._on_no_fly_zone, QOS_DEFAULT)
+        node.create_subscription("geometry_msgs/msg/Vector3Stamped", "wind", self._on_wind, QOS_DEFAULT)
         self._plan_status = self._diag_status(None, "no plan yet", values={"plans": 0, "status": "NONE"})
         node.create_timer(TICK_S, self._tick)
         # Reentrant: a service call waits for its plan without holding up the radar callbacks.
@@ -306,6 +309,32 @@ class PlannerNode:
         if len(self.tracks) >= self.params.min_aircraft and self._initial_requested:
             self.request(what)
 
+    def _on_wind(self, msg: Any) -> None:
+        """A wind estimate or forecast (m/s, ENU in ``frame_id``): the next plans are made in it; a change that
+        would move an aircraft by the deviation threshold within the replan interval asks for a replan now."""
+        try:
+            wind = wind_to_planner(msg, self.params.frame_id)
+            speed = math.hypot(*wind)
+            slowest = min((a.speed for a in self.scenario.aircraft), default=math.inf)
+            if speed >= slowest:
+                raise ValueError(f"{nm_per_s_to_kt(speed):.0f} kt is not below the slowest airspeed "
+                                 f"({nm_per_s_to_kt(slowest):.0f} kt)")
+        except (AttributeError, TypeError, ValueError) as exc:
+            self._bad("wind", f"bad wind on wind: {exc} (ignored)")
+            return
+        with self._lock:
+            change = math.hypot(wind[0] - self.wind[0], wind[1] - self.wind[1])
+            self.wind = wind
+        if change == 0.0:
+            return
+        heading = math.degrees(math.atan2(-wind[1], -wind[0])) % 360.0 if speed > 0 else 0.0
+        what = f"wind {nm_per_s_to_kt(speed):.1f} kt from heading {heading:.0f} deg ({self.params.frame_id})"
+        log.info("%s", what)
+        drift_m = change * self.params.min_replan_interval_s * METRES_PER_NM
+        thr = self.params.deviation_threshold_m
+        if self._current is not None and thr > 0 and drift_m > thr:
+            self.request(what)
+
     def _tick(self) -> None:
         p = self.params
         now = self._clock()
@@ -388,6 +417,8 @@ class PlannerNode:
         shift = max(0.0, plan_start - self._epoch) if self._epoch is not None else 0.0
         with self._lock:
             base = replace(self.scenario, obstacles=self.obstacles)
+            if self.wind != base.wind:
+                base = base.with_wind(self.wind)
         inputs = build_plan_scenario(base, tracks, plan_start, shift)
         for cs, why in inputs.left_out.items():
             log.warning("aircraft %s left out of the plan: %s", cs, why)
