@@ -3,10 +3,13 @@
 A plan is a time-stamped reference (a ``nav_msgs/Path`` or a :class:`~mal_planner.trajectory.Trajectory`):
 where the aircraft should be at each moment. The law, per aircraft and control step:
 
-1. the reference at the current time: position p_r, ground velocity v_r (the path's own rate of change, so
-   it holds whatever wind the planner assumed), flight-path angle, heading and their rates;
-2. the ground velocity wanted: v_r + (p_r - p) / T_p, the reference's plus a correction of the along-track,
-   cross-track and height errors;
+1. the reference at the plan's point closest to the aircraft (path following: searched within a turn time of
+   the clock): position p_r, ground velocity v_r (the path's own rate of change, so it holds whatever wind the
+   planner assumed), flight-path angle, heading and their rates. An along-track error (late or early) is kept:
+   a constant-airspeed aircraft can take it out only by cutting or stretching the path, which near the runway
+   puts it off the centreline; the service replans when it grows (new landing times);
+2. the ground velocity wanted: v_r + (p_r - p) / T_p, the reference's plus a correction of the cross-track and
+   height errors;
 3. the air velocity that gives it in the wind the aircraft measures (air data and satellite navigation do
    that on board): its direction sets the wanted heading and flight-path angle (the airspeed is constant, so
    only the direction can be chosen; the vertical component is met first);
@@ -33,6 +36,9 @@ ATTITUDE_TIME_PER_TURN_TIME = 0.25
 """T_a / T: how fast heading and flight-path-angle errors are taken out."""
 POSITION_TIME_PER_TURN_TIME = 0.5
 """T_p / T: how fast position errors are taken out (T_a / T_p = 1/2: damping 1 / (2 sqrt(1/2)) = 0.71)."""
+SEARCH_TURN_TIMES = 1.0
+"""How far from the clock the closest point of the plan is searched, in turn times: along-track errors are seconds,
+and a plan that loops comes back near itself only after 2 pi turn times."""
 
 
 class Reference:
@@ -76,6 +82,27 @@ class Reference:
     def position(self, t: float) -> np.ndarray:
         return self.sample(t)[:3]
 
+    def closest_time(self, p: np.ndarray, t: float, window_s: float) -> float:
+        """The plan's time whose position is closest to ``p``, searched within ``window_s`` of ``t`` (a plan that
+        loops passes near itself again only a turn later), on the plan's chords and on the final line beyond its
+        end. Path following flies the plan from there: the along-track error stays (a constant-airspeed aircraft
+        cannot take it out; replans move the landing times), the cross-track and height errors are taken out."""
+        p = np.asarray(p, float)[:3]
+        times = self.t
+        lo = max(int(np.searchsorted(times, t - window_s)) - 1, 0)
+        hi = min(int(np.searchsorted(times, t + window_s)) + 1, len(times))
+        if hi - lo < 2:  # the window lies wholly past the end (or before the start): the final line (the start)
+            lo, hi = (len(times) - 2, len(times)) if t > times[-1] else (0, 2)
+        a, b = self.table[lo:hi - 1, :3], self.table[lo + 1:hi, :3]
+        ab = b - a
+        u = np.clip(np.einsum("ij,ij->i", p - a, ab) / np.maximum(np.einsum("ij,ij->i", ab, ab), 1e-300), 0.0, 1.0)
+        k = int(np.argmin(np.linalg.norm(a + u[:, None] * ab - p, axis=1)))
+        s = float(times[lo + k] + u[k] * (times[lo + k + 1] - times[lo + k]))
+        if s >= times[-1]:  # on or past the end: along the final line (see :meth:`sample`)
+            v = self.table[-1, 5:8]
+            s = float(times[-1] + max(np.dot(p - self.table[-1, :3], v), 0.0) / max(float(np.dot(v, v)), 1e-300))
+        return s
+
 
 @dataclass(frozen=True)
 class GuidanceGains:
@@ -83,10 +110,13 @@ class GuidanceGains:
     """T_a: heading and flight-path-angle errors decay with this time constant."""
     position_s: float
     """T_p: position errors decay with this time constant."""
+    search_s: float = math.inf
+    """Path following: the plan's closest point is searched this long either side of the clock (a turn time)."""
 
     @classmethod
     def for_turn_time(cls, turn_time_s: float) -> GuidanceGains:
-        return cls(ATTITUDE_TIME_PER_TURN_TIME * turn_time_s, POSITION_TIME_PER_TURN_TIME * turn_time_s)
+        return cls(ATTITUDE_TIME_PER_TURN_TIME * turn_time_s, POSITION_TIME_PER_TURN_TIME * turn_time_s,
+                   SEARCH_TURN_TIMES * turn_time_s)
 
 
 def _wrap(angle: float) -> float:
@@ -116,12 +146,13 @@ def guidance_controls(model: DynamicsModel, limits: ControlLimits, gains: Guidan
     if reference is None:
         gamma_rate, heading_rate = -gamma / gains.attitude_s, 0.0
     else:
-        r = reference.sample(t)
+        s = reference.closest_time(state[:3], t, gains.search_s) if math.isfinite(gains.search_s) else t
+        r = reference.sample(s)
         wanted = r[5:8] + (r[:3] - state[:3]) / gains.position_s
         air = wanted - np.array([wind[0], wind[1], 0.0])
         gamma_d = math.asin(min(max(air[2] / v, -1.0), 1.0))
         heading_d = math.atan2(air[1], air[0])
-        ahead = reference.sample(t + lead_s) if lead_s > 0 else r
+        ahead = reference.sample(s + lead_s) if lead_s > 0 else r
         gamma_rate = ahead[8] + (gamma_d - gamma) / gains.attitude_s
         heading_rate = ahead[9] + _wrap(heading_d - heading) / gains.attitude_s
     n_h = v * cos_g * heading_rate / g

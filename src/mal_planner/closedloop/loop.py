@@ -19,6 +19,7 @@ from __future__ import annotations
 import logging
 import math
 import time
+from collections.abc import Callable
 from dataclasses import dataclass, field, replace
 
 import numpy as np
@@ -35,6 +36,9 @@ from mal_planner.scenario import Scenario
 
 log = logging.getLogger("mal_planner.closedloop")
 
+SimulatorFactory = Callable[[Scenario, SimOptions], FlightSimulator]
+"""Makes the simulator of a run (FlightSimulator itself is one; so is closedloop.bluesky_sim.BlueSkySimulator)."""
+
 RADAR_PERIOD_S = 1.0
 """Track update period: ADS-B's 1 Hz (a terminal radar turns in 4-5 s)."""
 DEVIATION_PER_SEPARATION = 0.2
@@ -47,6 +51,10 @@ REPLAN_INTERVAL_TURN_TIMES = 1.0
 """No deviation or periodic replan sooner than this after a plan arrived (thesis: 7.6 s; terminal area 14 s)."""
 PLAN_TIME_LIMIT_S = 60.0
 """Wall-clock limit of one plan (the planner node's ``planning_time_limit_s``): the best result so far then."""
+TRACKING_AIRSPACE_MARGIN = 0.5
+"""The airspace margin of flown plans, in path accuracies (see :func:`tracking_margins`)."""
+BANK_RESERVE = 0.1
+"""The share of the bank limit that flown plans leave to the guidance's feedback (thesis: 4.5 of 45 deg)."""
 OVERRUN_TURN_TIMES = 20.0
 """The run ends this long after the first plan's last landing if aircraft are still flying."""
 
@@ -105,23 +113,37 @@ def planning_scenario(scenario: Scenario, wind: WindSpec, knows_wind: bool) -> S
     return scenario.with_wind(tuple(wind.mean) if knows_wind else (0.0, 0.0))
 
 
-def tracking_margins(margins: SafetyMargins, scales: Scales, threshold_nm: float) -> SafetyMargins:
+def tracking_margins(margins: SafetyMargins, scales: Scales, threshold_nm: float, bank_limit_rad: float
+                     ) -> SafetyMargins:
     """The optimizer's margins for plans that are flown: an aircraft may stray up to the replan threshold before
     the service replans, so the separation keeps that much more (two aircraft each half of it towards the other).
-    Obstacles and the airspace keep the open-loop margins: inflated by the threshold, the holes of the walls would
-    leave no room (a 0.09-nm hole against 0.05 nm), and the runway lies on the airspace's floor."""
-    return replace(margins, separation=max(margins.separation, threshold_nm / scales.accuracy_nm))
+    Obstacles keep the open-loop margins: inflated by the threshold, the holes of the walls would leave no room (a
+    0.09-nm hole against 0.05 nm). The airspace keeps :data:`TRACKING_AIRSPACE_MARGIN` path accuracies: plans ride
+    the floor and the ceiling, where the flown path strays vertically by the load-factor lag (campaigns: up to 0.4
+    accuracies); the runway lies on the floor, so the threshold is crossed that high (thesis 4.6 m, a terminal area
+    9 m: inside the touchdown window's 50 ft). Plans keep :data:`BANK_RESERVE` of the bank limit for the guidance's
+    feedback: a plan that turns at the limit onto the threshold leaves none to take out an error there.
+    ``bank_limit_rad``: the smallest bank limit of the scenario's aircraft."""
+    return replace(margins, separation=max(margins.separation, threshold_nm / scales.accuracy_nm),
+                   airspace=max(margins.airspace, TRACKING_AIRSPACE_MARGIN),
+                   bank_rad=max(margins.bank_rad, BANK_RESERVE * bank_limit_rad))
 
 
 class ClosedLoop:
     """One scenario flown in closed loop; :meth:`run` returns a :class:`ClosedLoopRun`."""
 
-    def __init__(self, scenario: Scenario, options: ClosedLoopOptions | None = None) -> None:
+    def __init__(self, scenario: Scenario, options: ClosedLoopOptions | None = None,
+                 simulator: FlightSimulator | SimulatorFactory | None = None) -> None:
+        """``simulator``: the aircraft to fly the plans, a simulator with :class:`FlightSimulator`'s interface or a
+        factory called with (scenario, options.sim); None: a :class:`FlightSimulator`."""
         self.options = opts = options or ClosedLoopOptions()
         self.scenario = scenario
         self.base = planning_scenario(scenario, opts.sim.wind, opts.planner_knows_wind)
         self.scales = Scales.of(scenario)
-        self.sim = FlightSimulator(scenario, opts.sim)
+        if simulator is None or isinstance(simulator, FlightSimulator):
+            self.sim = simulator or FlightSimulator(scenario, opts.sim)
+        else:
+            self.sim = simulator(scenario, opts.sim)
         seed = opts.sim.seed
         self.noise = RadarNoise(opts.radar_noise_m, None if seed is None else seed + 1)
         self.published: dict[str, Reference] = {}
@@ -131,7 +153,8 @@ class ClosedLoop:
             DEVIATION_PER_NOISE * self.noise.sigma_nm)
         plan = opts.plan
         if opts.tracking_margins:
-            margins = tracking_margins(plan.landing.margins, self.scales, self.threshold)
+            bank = min(a.limits.bank_angle_max for a in scenario.aircraft)
+            margins = tracking_margins(plan.landing.margins, self.scales, self.threshold, bank)
             plan = replace(plan, landing=replace(plan.landing, margins=margins))
         self.planner = Planner(plan)
         self.min_interval = self.scales.seconds(REPLAN_INTERVAL_TURN_TIMES)
@@ -247,9 +270,10 @@ class ClosedLoop:
         return ClosedLoopRun(self.scenario, opts, self.sim, self.replans, first, time.perf_counter() - wall0)
 
 
-def run_closed_loop(scenario: Scenario, options: ClosedLoopOptions | None = None) -> ClosedLoopRun:
-    """Fly ``scenario`` in closed loop (see the module docstring)."""
-    return ClosedLoop(scenario, options).run()
+def run_closed_loop(scenario: Scenario, options: ClosedLoopOptions | None = None,
+                    simulator: FlightSimulator | SimulatorFactory | None = None) -> ClosedLoopRun:
+    """Fly ``scenario`` in closed loop (see the module docstring) in ``simulator`` (see :class:`ClosedLoop`)."""
+    return ClosedLoop(scenario, options, simulator).run()
 
 
 def percentile(values: list[float], q: float) -> float:

@@ -59,6 +59,9 @@ class ClosedLoopMetrics:
     """Replans whose landing order differs from the previous plan's (for the aircraft in both)."""
     wall_s: float
     notes: list[str] = field(default_factory=list)
+    external_losses_of_separation: list[str] | None = None
+    """The losses of separation the simulator's own detection counted (pairs "A-B"), when it has one (BlueSky's
+    ``external_los_pairs``); None: ours only."""
 
     @property
     def success(self) -> bool:
@@ -98,9 +101,13 @@ def measure_flight(sc: Scenario, sim: FlightSimulator, replans: list[Replan] | N
     failures += [f"loss of separation: {text}" for text in pair_failures]
     infringements = 0
     landed_here = {ac.callsign for ac in sim.aircraft if ac.status == LANDED}
+    step_s = float(getattr(sim, "step_s", 0.0))
     for cs, (t, x) in flown.items():
-        if cs in landed_here and len(t) > 2:  # the touchdown lies on the runway (the airspace's floor), checked by
-            t, x = t[:-1], x[:-1]  # the touchdown window instead
+        if cs in landed_here:  # the runway lies on the airspace's boundary: the touchdown, and the step that reaches
+            keep = t < t[-1] - step_s  # it (within a chord error of the threshold), are judged by the touchdown window
+            t, x = t[keep], x[keep]
+        if len(t) < 2:
+            continue
         found = flown_path_infringements(sc, sc.aircraft_by_callsign(cs), t, x)
         infringements += len(found)
         failures += found
@@ -140,4 +147,10 @@ def measure_flight(sc: Scenario, sim: FlightSimulator, replans: list[Replan] | N
         replan_latency_s={"median": percentile(latencies, 50), "p95": percentile(latencies, 95),
                           "max": max(latencies, default=math.nan)},
         first_plan_s=first.wall_s if first else math.nan, order_changes=changes, wall_s=wall_s,
-        notes=notes + ([] if first is None or first.ok else [f"first plan failed: {first.message}"]))
+        notes=notes + ([] if first is None or first.ok else [f"first plan failed: {first.message}"]),
+        external_losses_of_separation=_external_losses(sim))
+
+
+def _external_losses(sim: FlightSimulator) -> list[str] | None:
+    pairs = getattr(sim, "external_los_pairs", None)
+    return None if pairs is None else ["-".join(pair) for pair in pairs]
