@@ -181,13 +181,41 @@ def test_reference_carries_on_along_its_final_line() -> None:
     np.testing.assert_allclose(ref.position(-5.0), [0.0, 2.0, 0.1])  # before the start: the start
 
 
+def test_the_track_filter_smooths_radar_noise_against_the_plan_and_keeps_its_estimate_across_replans() -> None:
+    from mal_planner.closedloop.tracker import DeviationFilter
+
+    plan = Reference(np.array([0.0, 100.0]), np.array([[0.0, 4.0, 0.1, 0.0, -np.pi / 2],
+                                                      [0.0, 0.0, 0.1, 0.0, -np.pi / 2]]))
+    filt = DeviationFilter(time_constant_s=4.0, period_s=1.0)
+    rng = np.random.default_rng(1)
+    sigma = 30.0 / 1852.0
+    offset = np.array([0.02, 0.0, 0.0])  # the aircraft flies 0.02 nm east of its plan
+    errors = []
+    for k in range(400):
+        t = k * 0.25
+        measured = plan.position(t) + offset + rng.normal(0.0, sigma, 3)
+        errors.append(filt.update("A", measured, plan, t) - plan.position(t) - offset)
+    spread = float(np.std(np.array(errors[40:])[:, 0]))
+    assert spread < 0.6 * sigma  # about sigma sqrt(a / (2 - a))
+    assert spread == pytest.approx(sigma * filt.noise_factor(), rel=0.3)
+    # a new plan: the same estimate, expressed against it
+    new = Reference(np.array([50.0, 100.0]), np.array([[0.1, 2.0, 0.1, 0.0, -np.pi / 2], [0.1, 0.0, 0.1, 0.0, -np.pi / 2]]))
+    before = filt.estimate("A", plan, 60.0)
+    filt.replanned("A", plan, new, 60.0)
+    np.testing.assert_allclose(filt.estimate("A", new, 60.0), before)
+
+
 def test_flown_plans_keep_the_replan_threshold_as_separation_margin() -> None:
     from mal_planner.closedloop.loop import ClosedLoop
 
     scenario = load_scenario(THESIS)
     loop = ClosedLoop(scenario, ClosedLoopOptions(radar_noise_m=30.0))
     margins = loop.planner.options.landing.margins.in_nm(Scales.of(scenario))
-    assert loop.threshold == pytest.approx(max(0.2 * 0.25, 6 * 30.0 / 1852.0))
+    # 30 m of radar noise through the track filter (time constant half a turn time on the 1-s radar) leave 11 m
+    alpha = 1.0 - math.exp(-1.0 / (0.5 * Scales.of(scenario).time_s))
+    filtered_m = 30.0 * math.sqrt(alpha / (2.0 - alpha))
+    assert 10.0 < filtered_m < 12.0
+    assert loop.threshold == pytest.approx(max(0.2 * 0.25, 6 * filtered_m / 1852.0))
     assert margins.separation_nm == pytest.approx(loop.threshold)
     # obstacles keep the open-loop margins; the airspace half a path accuracy (the runway lies on its floor: the
     # threshold is crossed that high, inside the touchdown window); a tenth of the bank limit stays for feedback

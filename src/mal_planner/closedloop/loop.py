@@ -27,6 +27,7 @@ import numpy as np
 from mal_planner.closedloop.disturbances import RadarNoise, WindSpec
 from mal_planner.closedloop.guidance import Reference
 from mal_planner.closedloop.simulator import FlightSimulator, SimOptions
+from mal_planner.closedloop.tracker import DeviationFilter
 from mal_planner.landing.problem import SafetyMargins
 from mal_planner.pipeline import Planner, PlanOptions, PlanResult
 from mal_planner.ros.plan_scenario import build_plan_scenario
@@ -76,6 +77,9 @@ class ClosedLoopOptions:
     """Simulated seconds charged per wall-clock second of planning (1: honest; 0: planning takes no time)."""
     max_time_s: float | None = None
     """End of the run; None: the first plan's last landing plus OVERRUN_TURN_TIMES turn times."""
+    track_filter_turn_times: float = 0.5
+    """Time constant of the service's track filter (:mod:`mal_planner.closedloop.tracker`) in turn times (thesis
+    3.8 s: 30 m of radar noise leave 11 m); 0: raw radar tracks."""
     tracking_margins: bool = True
     """Plan with safety margins sized to the deviations the replan rule lets pass (see :func:`tracking_margins`);
     False: the open-loop planner's margins (sized to the plan's own accuracy only)."""
@@ -148,9 +152,10 @@ class ClosedLoop:
         self.noise = RadarNoise(opts.radar_noise_m, None if seed is None else seed + 1)
         self.published: dict[str, Reference] = {}
         self.replans: list[Replan] = []
+        self.filter = DeviationFilter(self.scales.seconds(opts.track_filter_turn_times), opts.radar_period_s)
         self.threshold = opts.deviation_nm if opts.deviation_nm is not None else max(
             DEVIATION_PER_SEPARATION * scenario.separation_nm,
-            DEVIATION_PER_NOISE * self.noise.sigma_nm)
+            DEVIATION_PER_NOISE * self.noise.sigma_nm * self.filter.noise_factor())
         plan = opts.plan
         if opts.tracking_margins:
             bank = min(a.limits.bank_angle_max for a in scenario.aircraft)
@@ -164,6 +169,19 @@ class ClosedLoop:
         return {ac.callsign: Track(ac.callsign, self.sim.t, ac.state.copy() if truth else self.noise.apply(ac.state),
                                    ac.model.speed, ac.wake)
                 for ac in self.sim.measurements()}
+
+    def _filtered(self, tracks: dict[str, Track]) -> dict[str, Track]:
+        """Radar tracks through the track filter (aircraft flying a plan; others as measured)."""
+        out = {}
+        for cs, tr in tracks.items():
+            ref = self.published.get(cs)
+            if ref is None or not ref.start <= tr.stamp <= ref.end:
+                out[cs] = tr
+                continue
+            state = tr.state.copy()
+            state[:3] = self.filter.update(cs, tr.state, ref, tr.stamp)
+            out[cs] = Track(cs, tr.stamp, state, tr.speed, tr.wake)
+        return out
 
     def _plan(self, tracks: dict[str, Track], reason: str) -> tuple[Replan, PlanResult | None]:
         t = max(tr.stamp for tr in tracks.values())
@@ -207,8 +225,28 @@ class ClosedLoop:
     def _deliver(self, result: PlanResult, at: float) -> None:
         for traj in result.landing.trajectories if result.landing else []:
             ref = Reference(traj.t + result.start_time, traj.states)
+            self.filter.replanned(traj.callsign, self.published.get(traj.callsign), ref, at)
             self.published[traj.callsign] = ref
             self.sim.set_plan(traj.callsign, ref, at)
+
+    def _stale(self, result: PlanResult, record: Replan) -> str | None:
+        """Why a plan that has just arrived is not handed out (None: it is): the tracks now stray more than the
+        replan threshold from it (its planning took longer than the lead it was made with, and the aircraft flew
+        on elsewhere). Handed out, it would ask for the next replan at once, from aircraft turning to join it."""
+        worst, who = 0.0, ""
+        for traj in result.landing.trajectories if result.landing else []:
+            flying = self.published.get(traj.callsign)
+            here = None if flying is None else self.filter.estimate(traj.callsign, flying, self.sim.t)
+            t = self.sim.t - result.start_time
+            if here is None or not 0.0 <= t <= float(traj.t[-1]):
+                continue
+            dev = float(np.linalg.norm(traj.state_at(np.array([t]))[0, :3] - here))
+            if dev > worst:
+                worst, who = dev, traj.callsign
+        if worst <= self.threshold:
+            return None
+        return (f"stale: arrived {self.sim.t - record.t:.1f} s after its start, {who} {worst:.3f} nm from it "
+                f"(threshold {self.threshold:.3f} nm); not handed out")
 
     def _trigger(self, tracks: dict[str, Track], since_last: float) -> str | None:
         if since_last < self.min_interval:
@@ -219,7 +257,9 @@ class ClosedLoop:
         worst, who = 0.0, ""
         for cs, tr in tracks.items():
             ref = self.published[cs]
-            if ref.start <= tr.stamp <= ref.end:  # past its end an aircraft is about to cross the threshold
+            # Within a replan interval of its landing a new plan would come too late to help (past its end an
+            # aircraft is about to cross the threshold): it flies on.
+            if ref.start <= tr.stamp <= ref.end - self.min_interval:
                 dev = float(np.linalg.norm(ref.position(tr.stamp) - tr.state[:3]))
                 if dev > worst:
                     worst, who = dev, cs
@@ -248,15 +288,22 @@ class ClosedLoop:
         while not self.sim.done and self.sim.t < t_max:
             if pending is not None and pending[0] <= next_radar:
                 self.sim.advance(pending[0])
-                if pending[2] is not None:
-                    self._deliver(pending[2], pending[0])
-                last_arrival, pending = pending[0], None
+                arrived, record, result = pending
+                pending = None
+                stale = self._stale(result, record) if result is not None else None
+                if stale is not None:  # the aircraft keep the plans they fly; the next radar update asks again
+                    record.ok, record.message = False, stale
+                    log.info("t=%.1f s: plan %s", self.sim.t, stale)
+                    continue
+                if result is not None:
+                    self._deliver(result, arrived)
+                last_arrival = arrived
                 continue
             self.sim.advance(next_radar)
             next_radar += opts.radar_period_s
+            tracks = self._filtered(self._tracks())
             if pending is not None:
                 continue
-            tracks = self._tracks()
             reason = self._trigger(tracks, self.sim.t - last_arrival) if tracks else None
             if reason is None:
                 continue
