@@ -199,7 +199,8 @@ def test_the_track_filter_smooths_radar_noise_against_the_plan_and_keeps_its_est
     assert spread < 0.6 * sigma  # about sigma sqrt(a / (2 - a))
     assert spread == pytest.approx(sigma * filt.noise_factor(), rel=0.3)
     # a new plan: the same estimate, expressed against it
-    new = Reference(np.array([50.0, 100.0]), np.array([[0.1, 2.0, 0.1, 0.0, -np.pi / 2], [0.1, 0.0, 0.1, 0.0, -np.pi / 2]]))
+    new = Reference(np.array([50.0, 100.0]), np.array([[0.1, 2.0, 0.1, 0.0, -np.pi / 2],
+                                                       [0.1, 0.0, 0.1, 0.0, -np.pi / 2]]))
     before = filt.estimate("A", plan, 60.0)
     filt.replanned("A", plan, new, 60.0)
     np.testing.assert_allclose(filt.estimate("A", new, 60.0), before)
