@@ -6,12 +6,12 @@ aircraft, with noise) at the radar's rate; a plan request built from them by the
 :func:`~mal_planner.ros.plan_scenario.build_plan_scenario`; the node's :class:`~mal_planner.pipeline.Planner`
 (warm-started replans and their fallbacks); a replan when an aircraft strays from its plan (or periodically).
 
-Planning time is charged honestly: a replan requested at time t reaches the aircraft at t + (wall-clock
-planning time) x ``planning_time_factor``, while they go on flying the previous plan. So that the new plan
-starts where they will be, it starts at t + lead (1.5 times the latest planning time, charged), from the tracks
-predicted along the plans they fly: the plan's state then, moved by the deviation measured now (as model
-predictive control does with a known delay). The first plan is the exception: it is made before the simulation
-starts (the service was running when the traffic appeared), from the true initial states.
+Planning time is charged honestly: a replan requested at time t reaches the aircraft at t + (its CPU time, or
+wall-clock time with ``charge="wall"``) x ``planning_time_factor``, while they go on flying the previous plan.
+So that the new plan starts where they will be, it starts at t + lead (1.5 times the latest planning time,
+charged), from the tracks predicted along the plans they fly: the plan's state then, moved by the deviation
+measured now (as model predictive control does with a known delay). The first plan is the exception: it is made
+before the simulation starts (the service was running when the traffic appeared), from the true initial states.
 """
 
 from __future__ import annotations
@@ -74,12 +74,18 @@ class ClosedLoopOptions:
     deviation_nm: float | None = None
     """Replan threshold; None: the larger of DEVIATION_PER_SEPARATION x separation and DEVIATION_PER_NOISE x noise."""
     planning_time_factor: float = 1.0
-    """Simulated seconds charged per wall-clock second of planning (1: honest; 0: planning takes no time)."""
+    """Simulated seconds charged per second of planning (1: honest; 0: planning takes no time)."""
     max_time_s: float | None = None
     """End of the run; None: the first plan's last landing plus OVERRUN_TURN_TIMES turn times."""
+    replan_limit_turn_times: float = 2.0
+    """Wall-clock limit of a replan in turn times (thesis 15 s, a terminal area 28 s; the first plan has the plan
+    options' limit): the aircraft fly on meanwhile, and a plan much later than that finds them elsewhere."""
     track_filter_turn_times: float = 0.5
     """Time constant of the service's track filter (:mod:`mal_planner.closedloop.tracker`) in turn times (thesis
     3.8 s: 30 m of radar noise leave 11 m); 0: raw radar tracks."""
+    charge: str = "cpu"
+    """What a replan costs in simulated time: "cpu", its CPU time (what it takes on a machine of its own: campaigns
+    share the cores, and wall-clock time would charge the other jobs' time too), or "wall", its wall-clock time."""
     tracking_margins: bool = True
     """Plan with safety margins sized to the deviations the replan rule lets pass (see :func:`tracking_margins`);
     False: the open-loop planner's margins (sized to the plan's own accuracy only)."""
@@ -98,6 +104,10 @@ class Replan:
     message: str
     aircraft: list[str]
     landing_order: list[str]
+    cpu_s: float = math.nan
+    """The planning's CPU time (the process's, every thread)."""
+    charged_s: float = math.nan
+    """The planning time charged in simulated time (see ``ClosedLoopOptions.charge``)."""
 
 
 @dataclass
@@ -185,7 +195,7 @@ class ClosedLoop:
 
     def _plan(self, tracks: dict[str, Track], reason: str) -> tuple[Replan, PlanResult | None]:
         t = max(tr.stamp for tr in tracks.values())
-        start = time.perf_counter()
+        start, cpu0 = time.perf_counter(), time.process_time()
         result: PlanResult | None = None
         try:
             inputs = build_plan_scenario(self.base, tracks, t, t)
@@ -197,13 +207,15 @@ class ClosedLoop:
             ok, message = failure is None, "verified" if failure is None else f"{failure[0]}: {failure[1]}"
         except Exception as exc:  # the service keeps running: the aircraft keep their plans
             ok, message = False, " ".join(str(exc).split()) or type(exc).__name__
-        wall = time.perf_counter() - start
+        wall, cpu = time.perf_counter() - start, time.process_time() - cpu0
         order = []
         if ok and result is not None:
             times = result.landing_times()
             order = sorted(times, key=times.__getitem__)
-        record = Replan(t, reason, wall, t, ok, message, sorted(tracks), order)
-        log.info("t=%.1f s: plan (%s) %s in %.2f s", t, reason, "verified" if ok else f"failed: {message}", wall)
+        charged = (cpu if self.options.charge == "cpu" else wall) * self.options.planning_time_factor
+        record = Replan(t, reason, wall, t, ok, message, sorted(tracks), order, cpu, charged)
+        log.info("t=%.1f s: plan (%s) %s in %.2f s (CPU %.2f s)", t, reason, "verified" if ok else f"failed: {message}",
+                 wall, cpu)
         return record, (result if ok else None)
 
     def _predicted(self, tracks: dict[str, Track], lead: float) -> dict[str, Track]:
@@ -274,6 +286,10 @@ class ClosedLoop:
         opts = self.options
         wall0 = time.perf_counter()
         first, result = self._plan(self._tracks(truth=True), "initial plan")
+        replan_limit = self.scales.seconds(opts.replan_limit_turn_times)
+        limit = self.planner.options.time_limit_s
+        self.planner.options = replace(self.planner.options,
+                                       time_limit_s=replan_limit if limit is None else min(limit, replan_limit))
         if result is not None:
             self._deliver(result, 0.0)
         t_max = opts.max_time_s
@@ -307,11 +323,10 @@ class ClosedLoop:
             reason = self._trigger(tracks, self.sim.t - last_arrival) if tracks else None
             if reason is None:
                 continue
-            latest = self.replans[-1].wall_s if self.replans else first.wall_s
-            lead = LEAD_PER_LATENCY * latest * opts.planning_time_factor
+            lead = LEAD_PER_LATENCY * (self.replans[-1] if self.replans else first).charged_s
             t_request = self.sim.t
             record, result = self._plan(self._predicted(tracks, lead) if lead > 0 else tracks, reason)
-            record.arrived_at = t_request + record.wall_s * opts.planning_time_factor
+            record.arrived_at = t_request + record.charged_s
             self.replans.append(record)
             pending = (record.arrived_at, record, result)
         return ClosedLoopRun(self.scenario, opts, self.sim, self.replans, first, time.perf_counter() - wall0)
