@@ -44,13 +44,16 @@ def add_plan_arguments(parser: argparse.ArgumentParser) -> None:
     loop.add_argument("--noise-m", type=float, default=30.0, help="radar noise sigma, m (default: %(default)s)")
     loop.add_argument("--delay-s", type=float, default=0.0, help="plan uptake delay, s (default: 0)")
     loop.add_argument("--unknown-wind", action="store_true", help="the planner plans in still air")
+    loop.add_argument("--simulator", choices=("ours", "bluesky"), default="ours",
+                      help="who flies the plans: our FlightSimulator or BlueSky (optional extra 'bluesky'; steady "
+                           "wind only: --gust-kt must be 0) (default: %(default)s)")
 
 
 def options_from_args(args: argparse.Namespace) -> dict[str, Any]:
     closed = None
     if args.closed_loop:
         closed = {"wind_kt_max": args.wind_kt_max, "gust_kt": args.gust_kt, "noise_m": args.noise_m,
-                  "delay_s": args.delay_s, "knows_wind": not args.unknown_wind}
+                  "delay_s": args.delay_s, "knows_wind": not args.unknown_wind, "simulator": args.simulator}
     return {"initializer": args.initializer, "seed": args.seed, "guess": args.guess,
             "free_landing_times": bool(args.free_landing_times), "mesh_tol": args.mesh_tol,
             "refine": not args.no_refine, "time_limit_s": args.plan_time_limit_s, "closed_loop": closed}
@@ -72,6 +75,15 @@ def check_options(options: dict[str, Any]) -> str | None:
                       ("delay_s", "--delay-s")):
         if key in closed and not closed[key] >= 0:
             return f"{flag}: must be >= 0, got {closed[key]}"
+    if closed.get("simulator", "ours") != "ours":
+        from mal_planner.closedloop.bluesky_sim import make_simulator
+
+        try:
+            make_simulator(closed["simulator"])
+        except ValueError as exc:
+            return str(exc)
+        if closed.get("gust_kt", 0.0) > 0:
+            return f"--gust-kt: BlueSky flies a steady wind only, got {closed['gust_kt']} with --simulator bluesky"
     return None
 
 

@@ -142,6 +142,20 @@ def summary_markdown(rows: Sequence[dict[str, str]], figures: Sequence[Path] = (
     return "\n".join(lines) + "\n"
 
 
+NO_REPLAN_DEVIATION = 0.2
+"""How close (in separations) a flown path must stay to its plan to count as flown as planned (thesis: 0.05 nm)."""
+
+
+def separation_of(row: dict[str, str]) -> float | None:
+    """The scenario's separation minimum (nm), read from its file (None if it cannot be read)."""
+    try:
+        from mal_planner.scenario import load_scenario
+
+        return float(load_scenario(row["file"]).separation_nm)
+    except Exception:
+        return None
+
+
 def closed_loop_section(rows: Sequence[dict[str, str]]) -> list[str]:
     """The closed-loop table (rows of ``mal-campaign --closed-loop``); none for an open-loop campaign."""
     flown = [r for r in rows if r.get("cl_landed")]
@@ -154,8 +168,19 @@ def closed_loop_section(rows: Sequence[dict[str, str]]) -> list[str]:
     ok = sum(r["status"] == "ok" for r in flown)
     lines = ["", "## Closed loop (flown tracks)", "",
              f"{ok} of {len(flown)} runs ({100.0 * ok / len(flown):.1f} %) landed everyone with no loss of "
-             "separation and no airspace or obstacle infringement on the tracks flown.", "",
-             "| N | runs | success | losses of separation | infringements | smallest separation (minima) | "
+             "separation and no airspace or obstacle infringement on the tracks flown.", ""]
+    own = [r for r in flown if r.get("cl_simulator_losses_of_separation", "") != ""]
+    if own:
+        los = int(sum(values("cl_simulator_losses_of_separation", own)))
+        lines += [f"The simulator's own conflict detection ({own[0].get('cl_simulator', '')}) counted {los} losses "
+                  f"of separation in {sum(as_float(r['cl_simulator_losses_of_separation']) > 0 for r in own)} of "
+                  f"{len(own)} runs.", ""]
+    calm = [r for r in flown if as_float(r.get("cl_replans", "")) == 0]
+    close = [r for r in calm if (d := as_float(r.get("cl_max_deviation_nm", ""))) is not None
+             and (sep := separation_of(r)) is not None and d <= NO_REPLAN_DEVIATION * sep]
+    lines += [f"{len(calm)} of {len(flown)} runs needed no replan; in {len(close)} of them every flown path stayed "
+              f"within {NO_REPLAN_DEVIATION:g} separation of its plan (0.05 nm in the thesis box).", "",
+              "| N | runs | success | losses of separation | infringements | smallest separation (minima) | "
              "largest deviation (nm, median / max) | replans (mean) | replan time median / p95 / max (s) |",
              "|---|---|---|---|---|---|---|---|---|"]
     for n in sorted({n for r in flown if (n := n_of(r)) is not None}):

@@ -39,10 +39,15 @@ def closed_loop_row(scenario: Scenario, source: str, options: dict[str, Any]) ->
     slowest = min(nm_per_s_to_kt(a.speed * math.cos(a.state0[3])) for a in scenario.aircraft)
     speed_kt = min(speed_kt, 0.5 * slowest)  # a slow model (rotorcraft) meets at most half its airspeed
     wind = WindSpec.from_knots(speed_kt, math.radians(from_deg), loop["gust_kt"])
+    simulator = None
+    if loop.get("simulator", "ours") != "ours":
+        from mal_planner.closedloop.bluesky_sim import make_simulator
+
+        simulator = make_simulator(loop["simulator"])
     run = run_closed_loop(scenario, ClosedLoopOptions(
         sim=SimOptions(wind=wind, plan_delay_s=loop["delay_s"], seed=seed),
         plan=replace(to_plan_options(options), time_limit_s=options.get("time_limit_s") or PLAN_TIME_LIMIT_S),
-        planner_knows_wind=loop["knows_wind"], radar_noise_m=loop["noise_m"]))
+        planner_knows_wind=loop["knows_wind"], radar_noise_m=loop["noise_m"]), simulator)
     m = measure(run)
     lat = m.replan_latency_s
     row: dict[str, Any] = {
@@ -61,6 +66,9 @@ def closed_loop_row(scenario: Scenario, source: str, options: dict[str, Any]) ->
         "cl_replan_median_s": _finite(lat["median"]), "cl_replan_p95_s": _finite(lat["p95"]),
         "cl_replan_max_s": _finite(lat["max"]), "cl_order_changes": m.order_changes,
         "cl_min_landing_spacing_s": _finite(m.min_landing_spacing_s),
+        "cl_simulator": loop.get("simulator", "ours"),
+        "cl_simulator_losses_of_separation": (None if m.external_losses_of_separation is None
+                                              else len(m.external_losses_of_separation)),
     }
     return row
 

@@ -16,6 +16,7 @@ import time
 from dataclasses import replace
 from pathlib import Path
 
+from mal_planner.closedloop.bluesky_sim import make_simulator
 from mal_planner.closedloop.disturbances import DEFAULT_GUST_TAU_S, WindSpec
 from mal_planner.closedloop.loop import PLAN_TIME_LIMIT_S, ClosedLoopOptions, run_closed_loop
 from mal_planner.closedloop.metrics import ClosedLoopMetrics, measure
@@ -79,6 +80,9 @@ def build_parser() -> argparse.ArgumentParser:
                    help="simulated seconds charged per second of planning (default: 1, honest)")
     p.add_argument("--time-limit", type=_positive, default=PLAN_TIME_LIMIT_S, metavar="S",
                    help="wall-clock limit of each plan, s (default: %(default)s, the planner node's)")
+    p.add_argument("--simulator", choices=("ours", "bluesky"), default="ours",
+                   help="who flies the plans: our FlightSimulator, or BlueSky's aircraft and autopilot (steady wind "
+                        "only; needs the bluesky extra) (default: %(default)s)")
     p.add_argument("--seed", type=int, default=0, help="seed of the initializer and the disturbances (default: 0)")
     p.add_argument("--no-figure", action="store_true", help="no PNG")
     p.add_argument("-q", "--quiet", action="store_true", help="warnings and the summary only")
@@ -103,6 +107,10 @@ def summary_lines(m: ClosedLoopMetrics, planner_side: bool = True) -> list[str]:
     ]
     if not planner_side:  # the simulator does not see the service's requests
         del lines[4:6]
+    if m.external_losses_of_separation is not None:
+        found = m.external_losses_of_separation
+        lines.insert(3, f"  simulator's LoS      {len(found)}{' (' + ', '.join(found) + ')' if found else ''} "
+                        "(its own detection)")
     lines += [f"  ! {text}" for text in m.failures[:10]]
     lines += [f"  note: {text}" for text in m.notes]
     return lines
@@ -134,6 +142,13 @@ def main(argv: list[str] | None = None) -> int:
               f"{nm_per_s_to_kt(wind.gust_sigma):.0f} kt of gusts is not below the slowest airspeed "
               f"{nm_per_s_to_kt(slowest):.0f} kt", file=sys.stderr)
         return 2
+    try:
+        simulator = make_simulator(args.simulator)
+        if args.simulator == "bluesky" and wind.gust_sigma > 0.0:
+            raise ValueError("--gust-kt: BlueSky flies a steady wind (no gusts)")
+    except ValueError as exc:
+        print(f"mal-closed-loop: {exc}", file=sys.stderr)
+        return 2
     options = ClosedLoopOptions(
         sim=SimOptions(wind=wind, plan_delay_s=args.delay_s, load_factor_lag_s=args.lag_s, seed=args.seed),
         plan=replace(PlanOptions(), seed=args.seed, time_limit_s=args.time_limit),
@@ -142,7 +157,7 @@ def main(argv: list[str] | None = None) -> int:
     out = args.out or Path("out") / "closed_loop" / scenario.name
     out.mkdir(parents=True, exist_ok=True)
     t0 = time.perf_counter()
-    run = run_closed_loop(scenario, options)
+    run = run_closed_loop(scenario, options, simulator)
     metrics = measure(run)
     record = {"metrics": metrics.to_dict(),
               "options": {k: v for k, v in vars(args).items() if k not in ("scenario", "out")},

@@ -42,8 +42,9 @@ SimulatorFactory = Callable[[Scenario, SimOptions], FlightSimulator]
 
 RADAR_PERIOD_S = 1.0
 """Track update period: ADS-B's 1 Hz (a terminal radar turns in 4-5 s)."""
-DEVIATION_PER_SEPARATION = 0.2
-"""Replan when a track strays this fraction of the separation from its plan (thesis: 0.05 nm, 93 m)..."""
+DEVIATION_PER_SEPARATION = 0.15
+"""Replan when a track strays this fraction of the separation from its plan (thesis: 0.0375 nm, 69 m; a terminal
+area 0.45 nm)..."""
 DEVIATION_PER_NOISE = 6.0
 """... or this many radar-noise sigmas, if more: a deviation the radar can tell from its noise."""
 LEAD_PER_LATENCY = 1.5
@@ -130,7 +131,7 @@ def planning_scenario(scenario: Scenario, wind: WindSpec, knows_wind: bool) -> S
 def tracking_margins(margins: SafetyMargins, scales: Scales, threshold_nm: float, bank_limit_rad: float
                      ) -> SafetyMargins:
     """The optimizer's margins for plans that are flown: an aircraft may stray up to the replan threshold before
-    the service replans, so the separation keeps that much more (two aircraft each half of it towards the other).
+    the service replans, so the separation keeps twice that much more (two aircraft, each that far towards the other).
     Obstacles keep the open-loop margins: inflated by the threshold, the holes of the walls would leave no room (a
     0.09-nm hole against 0.05 nm). The airspace keeps :data:`TRACKING_AIRSPACE_MARGIN` path accuracies: plans ride
     the floor and the ceiling, where the flown path strays vertically by the load-factor lag (campaigns: up to 0.4
@@ -138,7 +139,7 @@ def tracking_margins(margins: SafetyMargins, scales: Scales, threshold_nm: float
     9 m: inside the touchdown window's 50 ft). Plans keep :data:`BANK_RESERVE` of the bank limit for the guidance's
     feedback: a plan that turns at the limit onto the threshold leaves none to take out an error there.
     ``bank_limit_rad``: the smallest bank limit of the scenario's aircraft."""
-    return replace(margins, separation=max(margins.separation, threshold_nm / scales.accuracy_nm),
+    return replace(margins, separation=max(margins.separation, 2.0 * threshold_nm / scales.accuracy_nm),
                    airspace=max(margins.airspace, TRACKING_AIRSPACE_MARGIN),
                    bank_rad=max(margins.bank_rad, BANK_RESERVE * bank_limit_rad))
 

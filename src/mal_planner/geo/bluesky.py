@@ -14,7 +14,10 @@ International Standard Atmosphere at each waypoint's altitude (BlueSky's own atm
 
 from __future__ import annotations
 
+import contextlib
+import io
 import math
+import os
 from pathlib import Path
 
 import numpy as np
@@ -56,45 +59,72 @@ def _clock(t: float) -> str:
     return f"{int(hours):02d}:{int(minutes):02d}:{seconds:05.2f}"
 
 
+def detection_commands(scenario) -> list[str]:
+    """Conflict detection on, then the protected zone: the scenario's minima as BlueSky's cylinder (``ZONER`` nm,
+    ``ZONEDH`` ft, half its height; a sphere of radius d becomes the cylinder holding it)."""
+    vertical_ft = m_to_ft((scenario.vertical_separation_nm or scenario.separation_nm) * METRES_PER_NM)
+    return ["ASAS ON", f"ZONER {scenario.separation_nm:.6g}", f"ZONEDH {vertical_ft:.6g}"]
+
+
+def create_commands(callsign: str, frame: GeoFrame, state: np.ndarray, tas_kt: float, bank_angle_max: float,
+                    aircraft_type: str = "A320") -> list[str]:
+    """``CRE`` an aircraft at a local state [x, y, z, gamma, heading] (its heading made true at its position, its
+    true airspeed made CAS) and ``BANK`` it at the plan's limit (rad)."""
+    lat, lon, alt = frame.to_geodetic(state[:3])
+    track, _ = frame.direction_to_geodetic(state[:3], state[4], state[3])
+    return [f"CRE {callsign},{aircraft_type},{float(lat):.8f},{float(lon):.8f},{track:.4f},{float(alt):.2f},"
+            f"{tas_to_cas_kt(tas_kt, float(alt)):.3f}",
+            f"BANK {callsign} {math.degrees(bank_angle_max):.4f}"]
+
+
+def route_commands(callsign: str, frame: GeoFrame, t: np.ndarray, states: np.ndarray, tas_kt: float, dt: float,
+                   after: float | None = None) -> list[str]:
+    """``ADDWPT`` one sample of a plan (times ``t``, local states) every ``dt`` seconds after ``after`` (default:
+    its start) and its last one, at the true airspeed as CAS, then ``LNAV``/``VNAV ON``."""
+    if not dt > 0.0:
+        raise ValueError(f"waypoint_dt_s must be > 0, got {dt}")
+    start = float(t[0]) if after is None else max(float(after), float(t[0]))
+    marks = np.arange(start + dt, float(t[-1]), dt)
+    picks = sorted({int(np.argmin(np.abs(t - m))) for m in marks} | {len(t) - 1})
+    lat, lon, alt = frame.to_geodetic(states[picks, :3])
+    lines = [f"ADDWPT {callsign} {la:.8f} {lo:.8f} {al:.2f} {tas_to_cas_kt(tas_kt, al):.3f}"
+             for la, lo, al in zip(lat.tolist(), lon.tolist(), alt.tolist(), strict=True)]
+    return lines + [f"LNAV {callsign} ON", f"VNAV {callsign} ON"]
+
+
+def waypoint_interval_s(scenario) -> float:
+    """The default time between waypoints: the turn time / :data:`WAYPOINTS_PER_RADIAN`."""
+    return Scales.of(scenario).time_s / WAYPOINTS_PER_RADIAN
+
+
 def scn_lines(result, frame: GeoFrame | None = None, aircraft_type: str = "A320",
               waypoint_dt_s: float | None = None) -> list[str]:
     """The ``.scn`` lines of a plan (a :class:`~mal_planner.pipeline.PlanResult`).
 
     ``frame`` places a local scenario on the Earth (default: the scenario's own, required when it has none);
-    ``waypoint_dt_s`` is the time between waypoints (default: the turn time / :data:`WAYPOINTS_PER_RADIAN`).
+    ``waypoint_dt_s`` is the time between waypoints (default: :func:`waypoint_interval_s`).
     """
     scenario = result.scenario
     frame = frame or scenario.geo_frame
     if frame is None:
         raise ValueError(f"{scenario.source}: the scenario is local: give a frame (runway threshold and course) "
                          "to place it on the Earth")
-    dt = waypoint_dt_s or Scales.of(scenario).time_s / WAYPOINTS_PER_RADIAN
+    dt = waypoint_dt_s or waypoint_interval_s(scenario)
     if not dt > 0.0:
         raise ValueError(f"waypoint_dt_s must be > 0, got {waypoint_dt_s}")
-    vertical_ft = m_to_ft((scenario.vertical_separation_nm or scenario.separation_nm) * METRES_PER_NM)
+    at0 = "00:00:00.00>"
     lines = [f"# mal-planner plan of {scenario.name} ({scenario.source}); frame origin {frame.lat_deg:.8f} "
-             f"{frame.lon_deg:.8f} at {frame.elevation_ft:.1f} ft, runway course {frame.course_deg} deg true",
-             "00:00:00.00>ASAS ON",
-             f"00:00:00.00>ZONER {scenario.separation_nm:.6g}",
-             f"00:00:00.00>ZONEDH {vertical_ft:.6g}"]
+             f"{frame.lon_deg:.8f} at {frame.elevation_ft:.1f} ft, runway course {frame.course_deg} deg true"]
+    lines += [at0 + c for c in detection_commands(scenario)]
     landing = result.landing_times()
     deletions = []
     for tr in result.trajectories():
         ac = scenario.aircraft_by_callsign(tr.callsign)
         tas_kt = nm_per_s_to_kt(ac.speed)
-        lat, lon, alt = frame.to_geodetic(tr.states[:, :3])
-        track, _ = frame.direction_to_geodetic(tr.states[0, :3], tr.states[0, 4], tr.states[0, 3])
-        t0, t_end = float(tr.t[0]), float(tr.t[-1])
-        lines.append(f"00:00:00.00>CRE {tr.callsign},{aircraft_type},{lat[0]:.8f},{lon[0]:.8f},{track:.4f},"
-                     f"{alt[0]:.2f},{tas_to_cas_kt(tas_kt, alt[0]):.3f}")
-        lines.append(f"00:00:00.00>BANK {tr.callsign} {math.degrees(ac.limits.bank_angle_max):.4f}")
-        marks = np.arange(t0 + dt, t_end, dt)
-        picks = sorted({int(np.argmin(np.abs(tr.t - m))) for m in marks} | {len(tr.t) - 1})
-        for k in picks:
-            lines.append(f"00:00:00.00>ADDWPT {tr.callsign} {lat[k]:.8f} {lon[k]:.8f} {alt[k]:.2f} "
-                         f"{tas_to_cas_kt(tas_kt, alt[k]):.3f}")
-        lines += [f"00:00:00.00>LNAV {tr.callsign} ON", f"00:00:00.00>VNAV {tr.callsign} ON"]
-        deletions.append((float(landing.get(tr.callsign, t_end)), tr.callsign))
+        commands = create_commands(tr.callsign, frame, tr.states[0], tas_kt, ac.limits.bank_angle_max, aircraft_type)
+        commands += route_commands(tr.callsign, frame, tr.t, tr.states, tas_kt, dt)
+        lines += [at0 + c for c in commands]
+        deletions.append((float(landing.get(tr.callsign, tr.t[-1])), tr.callsign))
     lines += [f"{_clock(t)}>DEL {callsign}" for t, callsign in sorted(deletions)]
     return lines
 
@@ -106,25 +136,72 @@ def write_scn(result, path: str | Path, frame: GeoFrame | None = None, **options
     return path
 
 
+_started: Path | None = None
+"""BlueSky's working directory once it has been initialised in this process (it keeps global state)."""
+
+
+def default_workdir() -> Path:
+    """Where BlueSky keeps its settings, navigation cache and logs by default: the user's cache folder (its
+    navigation data are parsed once, about 7-25 s, then read from the cache in 0.2 s)."""
+    base = os.environ.get("XDG_CACHE_HOME") or Path.home() / ".cache"
+    return Path(base) / "mal-planner" / "bluesky"
+
+
+def start_bluesky(workdir: str | Path | None = None):
+    """BlueSky, headless, ready for a new scenario; returns the ``bluesky`` module (needs bluesky-simulator).
+
+    The first call in a process initialises it in ``workdir`` (default: :func:`default_workdir`) with its
+    compiled modules off (1.1.1's compiled conflict detection is wrong); later calls reset it (traffic, clock,
+    stack, wind: 0.1 s) and ignore ``workdir``: BlueSky keeps global state, one simulation per process.
+    """
+    global _started
+    import importlib.resources
+
+    import bluesky
+
+    if _started is not None:
+        with contextlib.redirect_stdout(io.StringIO()):  # "Loading global navigation database..."
+            bluesky.sim.reset()
+        return bluesky
+    workdir = Path(workdir) if workdir is not None else default_workdir()
+    workdir.mkdir(parents=True, exist_ok=True)
+    default = importlib.resources.files("bluesky").joinpath("resources", "default.cfg").read_text()
+    (workdir / "settings.cfg").write_text(default.replace("prefer_compiled = True", "prefer_compiled = False"))
+    with contextlib.redirect_stdout(io.StringIO()):  # its loading messages
+        bluesky.init(mode="sim", detached=True, workdir=str(workdir))
+    if getattr(bluesky.settings, "prefer_compiled", False):
+        raise RuntimeError("BlueSky kept prefer_compiled = True")
+    _started = workdir
+    return bluesky
+
+
+def run_commands(bluesky, commands: list[str]) -> None:
+    """Process stack commands now (before the next step); RuntimeError with BlueSky's messages if any fails."""
+    errors: list[str] = []
+    net = bluesky.net
+
+    def capture(topic, data="", to_group=b"") -> None:  # a detached BlueSky drops its echoes: catch the errors
+        if topic == "ECHO" and isinstance(data, dict) and data.get("flags"):
+            errors.append(str(data.get("text", "")))
+
+    net.send = capture
+    try:
+        bluesky.stack.process(";".join(commands))
+    finally:
+        del net.send  # the class's own again
+    if errors:
+        raise RuntimeError("BlueSky refused: " + " | ".join(" ".join(e.split()) for e in errors))
+
+
 def replay(scn: str | Path, until_s: float, workdir: str | Path) -> tuple[dict[str, np.ndarray], list[tuple[str, str]]]:
     """Fly a ``.scn`` file in BlueSky, headless, for ``until_s`` simulated seconds (needs bluesky-simulator).
 
     Returns each aircraft's flown samples, rows (t_s, lat_deg, lon_deg, alt_ft), one per simulation step, and
     BlueSky's own losses of separation (pairs of callsigns). ``workdir`` gets BlueSky's settings (with its
-    compiled geodesy off: 1.1.1's compiled conflict detection is wrong), navigation cache and logs. BlueSky
-    keeps global state: call this once per process.
+    compiled geodesy off: 1.1.1's compiled conflict detection is wrong), navigation cache and logs, the first
+    time in a process (see :func:`start_bluesky`).
     """
-    import importlib.resources
-
-    import bluesky
-
-    workdir = Path(workdir)
-    workdir.mkdir(parents=True, exist_ok=True)
-    default = importlib.resources.files("bluesky").joinpath("resources", "default.cfg").read_text()
-    (workdir / "settings.cfg").write_text(default.replace("prefer_compiled = True", "prefer_compiled = False"))
-    bluesky.init(mode="sim", detached=True, workdir=str(workdir))
-    if getattr(bluesky.settings, "prefer_compiled", False):
-        raise RuntimeError("BlueSky kept prefer_compiled = True")
+    bluesky = start_bluesky(workdir)
     bluesky.stack.stack(f"IC {Path(scn).resolve()}")
     flown: dict[str, list[tuple[float, float, float, float]]] = {}
     traf, sim = bluesky.traf, bluesky.sim
