@@ -42,9 +42,9 @@ SimulatorFactory = Callable[[Scenario, SimOptions], FlightSimulator]
 
 RADAR_PERIOD_S = 1.0
 """Track update period: ADS-B's 1 Hz (a terminal radar turns in 4-5 s)."""
-DEVIATION_PER_SEPARATION = 0.15
-"""Replan when a track strays this fraction of the separation from its plan (thesis: 0.0375 nm, 69 m; a terminal
-area 0.45 nm)..."""
+DEVIATION_PER_SEPARATION = 0.2
+"""Replan when a track strays this fraction of the separation from its plan (thesis: 0.05 nm, 93 m; a terminal
+area 0.6 nm)..."""
 DEVIATION_PER_NOISE = 6.0
 """... or this many radar-noise sigmas, if more: a deviation the radar can tell from its noise."""
 LEAD_PER_LATENCY = 1.5

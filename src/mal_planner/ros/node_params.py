@@ -122,6 +122,9 @@ PARAMETERS: dict[str, tuple[Any, Check, str]] = {
     "max_nlp_iterations": (3000, _int(1), "IPOPT iteration limit"),
     "max_mesh_iterations": (8, _int(1), "mesh refinement iteration limit"),
     "output_dt": (0.25, _float(lo=MIN_OUTPUT_DT_S, hi=MAX_OUTPUT_DT_S), "sample step of the published paths [s]"),
+    "tracking_margins": (False, _bool, "plan with the closed loop's margins for flown plans: twice "
+                         "deviation_threshold_m more separation, a tenth of the bank limit and half a path accuracy "
+                         "from the airspace's bounds left to the aircraft's guidance"),
     "replan_period_s": (0.0, _float(), "periodic replanning [s], 0 = off"),
     "deviation_threshold_m": (926.0, _float(), "replan when radar deviates more from the plan [m], 0 = off"),
     "min_replan_interval_s": (5.0, _float(), "no deviation/periodic replan sooner after a plan [s]"),
@@ -156,6 +159,7 @@ class NodeParams:
     max_nlp_iterations: int
     max_mesh_iterations: int
     output_dt: float
+    tracking_margins: bool
     replan_period_s: float
     deviation_threshold_m: float
     min_replan_interval_s: float

@@ -28,13 +28,14 @@ from typing import Any
 import numpy as np
 
 from mal_planner.dynamics import bank_angle
-from mal_planner.pipeline import Planner, PlanResult
+from mal_planner.pipeline import Planner, PlanOptions, PlanResult
 from mal_planner.ros.convert import aircraft_state_to_planner, byte_field, path_msg, time_to_msg, wind_to_planner
 from mal_planner.ros.markers import marker_array
 from mal_planner.ros.node_params import NodeParams, declare_parameters, describe, read_params_file, update_params
 from mal_planner.ros.plan_scenario import NoFlyZoneError, PlanInputs, apply_no_fly_zone, build_plan_scenario
 from mal_planner.ros.state_store import AHEAD_TOLERANCE_S, CALLSIGN_RE, Track, TrackStore, check_track
 from mal_planner.ros.transport import QOS_DEFAULT, QOS_LATCHED, QoSProfile, create_node
+from mal_planner.scales import Scales
 from mal_planner.scenario import Scenario, ScenarioError, load_scenario
 from mal_planner.trajectory import Trajectory
 from mal_planner.units import METRES_PER_NM, nm_per_s_to_kt
@@ -116,7 +117,7 @@ class PlannerNode:
         self.obstacles = scenario.obstacles
         self.wind: tuple[float, float] = scenario.wind
         """The wind plans are made in (nm/s, local frame): the scenario's until a message on ``wind`` says otherwise."""
-        self.planner = Planner(self.params.plan_options())
+        self.planner = Planner(self._plan_options())
         self.tracks = TrackStore()
         self.out_dir = Path(self.params.output_dir) if self.params.output_dir else None
         self._lock = threading.Condition()
@@ -202,6 +203,20 @@ class PlannerNode:
             self.out_dir = Path(new.output_dir) if new.output_dir else None
         log.info("parameters updated: %s", describe(changes))
         return True, ""
+
+    def _plan_options(self) -> PlanOptions:
+        """The parameters' plan options; with ``tracking_margins`` the closed loop's margins for plans that are
+        flown (:func:`mal_planner.closedloop.loop.tracking_margins`, sized to ``deviation_threshold_m``)."""
+        options = self.params.plan_options()
+        if not self.params.tracking_margins:
+            return options
+        from mal_planner.closedloop.loop import tracking_margins
+
+        bank = min((a.limits.bank_angle_max for a in self.scenario.aircraft),
+                   default=self.scenario.config.limits.to_limits().bank_angle_max)
+        margins = tracking_margins(options.landing.margins, Scales.of(self.scenario),
+                                   self.params.deviation_threshold_m / METRES_PER_NM, bank)
+        return replace(options, landing=replace(options.landing, margins=margins))
 
     def _scenario_speed(self, callsign: str) -> float | None:
         """The scenario's speed of a known aircraft [nm/s] (None for one it does not know)."""
@@ -436,7 +451,7 @@ class PlannerNode:
         log.info("planning (%s): %d aircraft [%s] from t=%.3f", "; ".join(job.reasons), len(sc.aircraft),
                  ", ".join(a.callsign for a in sc.aircraft), inputs.plan_start)
         explicit = job.explicit is not None
-        options = self.params.plan_options()
+        options = self._plan_options()
         if explicit:  # a what-if plan: its own planner, so the radar plan's warm start stays intact
             planner = Planner(options)
         else:
@@ -489,7 +504,7 @@ class PlannerNode:
             else:
                 reason += "; no plan yet"
             log.error("%s", reason)
-            self.planner = Planner(self.params.plan_options())
+            self.planner = Planner(self._plan_options())
             self._publish_diagnostics(result, f"FAILED: {reason}", failed=True, extra=extra)
         else:
             log.error("what-if plan failed: %s", reason)
