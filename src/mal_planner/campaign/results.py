@@ -43,6 +43,7 @@ CLOSED_LOOP_COLUMNS: tuple[str, ...] = (
     "cl_replans", "cl_failed_replans", "cl_replan_reasons",
     "cl_replan_median_s", "cl_replan_p95_s", "cl_replan_max_s",
     "cl_order_changes", "cl_min_landing_spacing_s",
+    "cl_replan_times_s",           # every replan's planning time as charged (CPU), ';'-separated
     "cl_simulator",                # who flew: ours (FlightSimulator) or bluesky
     "cl_simulator_losses_of_separation",  # the simulator's own count (BlueSky's conflict detection); empty: ours
 )

@@ -194,6 +194,14 @@ def closed_loop_section(rows: Sequence[dict[str, str]]) -> list[str]:
                      f" | {_fmt(min(ratio) if ratio else None, 3)} | {_fmt(_median(dev), 4)} / "
                      f"{_fmt(max(dev) if dev else None, 4)} | {_fmt(float(np.mean(replans)) if replans else None, 1)}"
                      f" | {_fmt(_median(lat))} / {_fmt(_median(p95))} / {_fmt(max(top) if top else None)} |")
+    sizes = sorted({n_of(r) for r in flown} - {None})
+    pooled = [(n, [float(x) for r in flown if n_of(r) == n for x in r.get("cl_replan_times_s", "").split(";") if x])
+              for n in sizes]
+    if any(times for _, times in pooled):
+        lines += ["", "Every replan's planning time as charged (CPU s), pooled over the runs:", "",
+                  "| N | replans | median | p95 | max |", "|---|---|---|---|---|"]
+        lines += [f"| {n} | {len(t)} | {_fmt(float(np.median(t)))} | {_fmt(float(np.percentile(t, 95)))} | "
+                  f"{_fmt(max(t))} |" for n, t in pooled if t]
     failed = [r for r in flown if r["status"] != "ok"]
     if failed:
         lines += ["", "Runs that failed, and why:", ""]

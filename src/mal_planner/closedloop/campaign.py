@@ -66,6 +66,7 @@ def closed_loop_row(scenario: Scenario, source: str, options: dict[str, Any]) ->
         "cl_replan_median_s": _finite(lat["median"]), "cl_replan_p95_s": _finite(lat["p95"]),
         "cl_replan_max_s": _finite(lat["max"]), "cl_order_changes": m.order_changes,
         "cl_min_landing_spacing_s": _finite(m.min_landing_spacing_s),
+        "cl_replan_times_s": ";".join(f"{r.charged_s:.3f}" for r in run.replans),
         "cl_simulator": loop.get("simulator", "ours"),
         "cl_simulator_losses_of_separation": (None if m.external_losses_of_separation is None
                                               else len(m.external_losses_of_separation)),
