@@ -135,6 +135,10 @@ def test_closed_loop_campaign_row(tmp_path: Path) -> None:
     assert row["status"] == "ok", row["reason"]
     summary = (tmp_path / "c" / "summary.md").read_text(encoding="utf-8")
     assert "## Closed loop (flown tracks)" in summary and "1 of 1 runs" in summary
+    assert row["cl_simulator"] == "ours" and row["cl_simulator_losses_of_separation"] == ""
+    replans = [float(x) for x in row["cl_replan_times_s"].split(";") if x]
+    assert len(replans) == int(row["cl_replans"]) and all(x >= 0 for x in replans)
+    assert "runs needed no replan" in summary
 
 
 def test_simulator_clock_drives_an_rclpy_node_with_use_sim_time(dds_env: dict[str, str]) -> None:  # noqa: F811
