@@ -101,9 +101,46 @@ def figure_failures(rows: Sequence[dict[str, str]], path: Path) -> Path:
     return _save(fig, path)
 
 
+def figure_closed_loop(rows: Sequence[dict[str, str]], path: Path) -> Path:
+    """Closed-loop runs: the smallest separation flown per run against N, the largest deviation from the plans, and
+    every replan's planning time (ECDF)."""
+    plt = _pyplot()
+    flown = [r for r in rows if r.get("cl_landed")]
+    fig, (ax1, ax2, ax3) = plt.subplots(1, 3, figsize=(12, 3.6))
+    rng = np.random.default_rng(0)
+    for ok, color, label in ((True, "tab:green", "success"), (False, "tab:red", "failed")):
+        sel = [r for r in flown if (r["status"] == "ok") == ok]
+        pts = [(n, v) for r in sel if (n := as_float(r["n_aircraft"])) is not None
+               and (v := as_float(r.get("cl_separation_ratio", ""))) is not None]
+        if pts:
+            n, v = np.array(pts).T
+            ax1.scatter(n + rng.uniform(-0.2, 0.2, n.size), v, s=10, color=color, label=f"{label} ({len(sel)})")
+        devs = [v for r in sel if (v := as_float(r.get("cl_max_deviation_nm", ""))) is not None]
+        if devs:
+            ax2.hist(devs, bins=np.linspace(0.0, max(0.2, max(devs)), 30), alpha=0.6, color=color, label=label)
+    ax1.axhline(1.0, color="k", lw=0.8, ls="--")
+    ax1.set(xlabel="aircraft N", ylabel="smallest separation flown (minima)", title="Closest pair per run")
+    ax2.set(xlabel="largest deviation from the plan flown (nm)", ylabel="runs", title="Deviation per run")
+    times = np.sort([float(x) for r in flown for x in r.get("cl_replan_times_s", "").split(";") if x])
+    if times.size:
+        ax3.step(np.concatenate([[times[0]], times]), np.arange(times.size + 1) / times.size, where="post")
+        ax3.set_xscale("log")
+    ax3.set(xlabel="replan planning time, charged (s)", ylabel="fraction of replans",
+            title=f"Replans ({times.size})")
+    for ax in (ax1, ax2, ax3):
+        ax.grid(True, alpha=0.3)
+    for ax in (ax1, ax2):
+        if ax.get_legend_handles_labels()[0]:
+            ax.legend(fontsize=8)
+    return _save(fig, path)
+
+
 def write_figures(rows: Sequence[dict[str, str]], out_dir: Path) -> list[Path]:
     out_dir = Path(out_dir)
-    return [figure_success(rows, out_dir / "success_rate.png"),
-            figure_stage_times(rows, out_dir / "stage_times.png"),
-            figure_solve_times(rows, out_dir / "solve_times.png"),
-            figure_failures(rows, out_dir / "failure_classes.png")]
+    paths = [figure_success(rows, out_dir / "success_rate.png"),
+             figure_stage_times(rows, out_dir / "stage_times.png"),
+             figure_solve_times(rows, out_dir / "solve_times.png"),
+             figure_failures(rows, out_dir / "failure_classes.png")]
+    if any(r.get("cl_landed") for r in rows):
+        paths.append(figure_closed_loop(rows, out_dir / "closed_loop.png"))
+    return paths
