@@ -162,6 +162,9 @@ class ClosedLoop:
         seed = opts.sim.seed
         self.noise = RadarNoise(opts.radar_noise_m, None if seed is None else seed + 1)
         self.published: dict[str, Reference] = {}
+        """The plan each aircraft flies now, as the service knows it."""
+        self.upcoming: dict[str, Reference] = {}
+        """Plans handed out that start later (flown from their start)."""
         self.replans: list[Replan] = []
         self.filter = DeviationFilter(self.scales.seconds(opts.track_filter_turn_times), opts.radar_period_s)
         self.threshold = opts.deviation_nm if opts.deviation_nm is not None else max(
@@ -238,9 +241,18 @@ class ClosedLoop:
     def _deliver(self, result: PlanResult, at: float) -> None:
         for traj in result.landing.trajectories if result.landing else []:
             ref = Reference(traj.t + result.start_time, traj.states)
-            self.filter.replanned(traj.callsign, self.published.get(traj.callsign), ref, at)
-            self.published[traj.callsign] = ref
+            self.upcoming[traj.callsign] = ref
             self.sim.set_plan(traj.callsign, ref, at)
+        self._take_up(at)
+
+    def _take_up(self, t: float) -> None:
+        """Plans handed out that the aircraft fly from ``t`` on (one that starts later is flown from its start, the
+        previous one until then) become the plans the service checks the tracks against."""
+        for cs, ref in list(self.upcoming.items()):
+            if ref.start <= t:
+                self.filter.replanned(cs, self.published.get(cs), ref, max(ref.start, t))
+                self.published[cs] = ref
+                del self.upcoming[cs]
 
     def _stale(self, result: PlanResult, record: Replan) -> str | None:
         """Why a plan that has just arrived is not handed out (None: it is): the tracks now stray more than the
@@ -318,6 +330,7 @@ class ClosedLoop:
                 continue
             self.sim.advance(next_radar)
             next_radar += opts.radar_period_s
+            self._take_up(self.sim.t)
             tracks = self._filtered(self._tracks())
             if pending is not None:
                 continue
