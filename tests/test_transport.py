@@ -319,7 +319,8 @@ def test_parameter_services_follow_rclpy() -> None:
             return T.msg("rcl_interfaces/msg/Parameter")(
                 name=name, value=value_to_msg(T.msg("rcl_interfaces/msg/ParameterValue"), value))
 
-        assert list(call("ListParameters").result.names) == ["rate", "solver.tol"]
+        # every node has use_sim_time (rclpy declares it too): the node's clock follows /clock when it is true
+        assert list(call("ListParameters").result.names) == ["use_sim_time", "rate", "solver.tol"]
         assert [value_from_msg(v) for v in call("GetParameters", names=["rate", "solver.tol"]).values] == [5.0, 1e-6]
         assert call("GetParameters", names=["rate", "nope"]).values == []  # rclpy: nothing if one is undeclared
         assert list(call("GetParameterTypes", names=["rate", "nope"]).types) == [3, 0]
