@@ -220,7 +220,7 @@ def test_flown_plans_keep_the_replan_threshold_as_separation_margin() -> None:
     alpha = 1.0 - math.exp(-1.0 / (0.5 * Scales.of(scenario).time_s))
     filtered_m = 30.0 * math.sqrt(alpha / (2.0 - alpha))
     assert 10.0 < filtered_m < 12.0
-    assert loop.threshold == pytest.approx(max(0.2 * 0.25, 6 * filtered_m / 1852.0))
+    assert loop.threshold == pytest.approx(max(10 * Scales.of(scenario).accuracy_nm, 6 * filtered_m / 1852.0))
     assert margins.separation_nm == pytest.approx(2.0 * loop.threshold)
     # obstacles keep the open-loop margins; the airspace half a path accuracy (the runway lies on its floor: the
     # threshold is crossed that high, inside the touchdown window); a tenth of the bank limit stays for feedback

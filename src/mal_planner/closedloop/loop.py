@@ -42,9 +42,11 @@ SimulatorFactory = Callable[[Scenario, SimOptions], FlightSimulator]
 
 RADAR_PERIOD_S = 1.0
 """Track update period: ADS-B's 1 Hz (a terminal radar turns in 4-5 s)."""
-DEVIATION_PER_SEPARATION = 0.2
-"""Replan when a track strays this fraction of the separation from its plan (thesis: 0.05 nm, 93 m; a terminal
-area 0.6 nm)..."""
+DEVIATION_ACCURACIES = 10.0
+"""Replan when a track strays this many path accuracies (turn radius / 60) from its plan (thesis: 0.05 nm, 93 m;
+a terminal area at 150 kt and 30 deg: 0.09 nm). How far aircraft stray is set by their own dynamics (turn radius
+and time: guidance, lag, gusts), not by the separation: sized to the separation (0.2 of it, 0.6 nm in a terminal
+area), the margins of flown plans made the first terminal-area plans infeasible..."""
 DEVIATION_PER_NOISE = 6.0
 """... or this many radar-noise sigmas, if more: a deviation the radar can tell from its noise."""
 LEAD_PER_LATENCY = 1.5
@@ -73,7 +75,8 @@ class ClosedLoopOptions:
     replan_period_s: float = 0.0
     """Replan this often regardless of deviations (0: only on deviations)."""
     deviation_nm: float | None = None
-    """Replan threshold; None: the larger of DEVIATION_PER_SEPARATION x separation and DEVIATION_PER_NOISE x noise."""
+    """Replan threshold; None: the larger of DEVIATION_ACCURACIES path accuracies and DEVIATION_PER_NOISE x the
+    filtered radar noise."""
     planning_time_factor: float = 1.0
     """Simulated seconds charged per second of planning (1: honest; 0: planning takes no time)."""
     max_time_s: float | None = None
@@ -168,7 +171,7 @@ class ClosedLoop:
         self.replans: list[Replan] = []
         self.filter = DeviationFilter(self.scales.seconds(opts.track_filter_turn_times), opts.radar_period_s)
         self.threshold = opts.deviation_nm if opts.deviation_nm is not None else max(
-            DEVIATION_PER_SEPARATION * scenario.separation_nm,
+            DEVIATION_ACCURACIES * self.scales.accuracy_nm,
             DEVIATION_PER_NOISE * self.noise.sigma_nm * self.filter.noise_factor())
         plan = opts.plan
         if opts.tracking_margins:

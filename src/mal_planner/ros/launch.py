@@ -7,7 +7,7 @@
 ``--closed-loop`` runs the flight simulator (:mod:`mal_planner.ros.radar_sim`) as the radar source: its aircraft
 fly the published plans under guidance, in the scenario's wind plus gusts, and it publishes ``/clock``; the
 planner runs with ``use_sim_time`` (so the simulation may run faster than real time, ``--sim-speed``, while
-planning time counts in full), replans when a track strays 0.2 separation from its plan, and the run
+planning time counts in full), replans when a track strays ten path accuracies from its plan, and the run
 ends when every aircraft has landed, with the simulator's summary of what was flown.
 
 Each part runs as its own process (``python -m mal_planner.ros.<part>``); their output is prefixed with
@@ -190,11 +190,11 @@ def summary_table(status: dict[str, Any]) -> str:
 
 def closed_loop_params(params: str, scenario: str, out: Path) -> str:
     """The planner's params file for a closed loop: the given one, on simulated time, planning once every aircraft
-    is tracked, replanning when a track strays 0.2 separation from its plan (no sooner than a turn time
+    is tracked, replanning when a track strays ten path accuracies from its plan (no sooner than a turn time
     after the last plan), with the margins of flown plans: :mod:`mal_planner.closedloop.loop`'s rules."""
     import yaml
 
-    from mal_planner.closedloop.loop import DEVIATION_PER_SEPARATION, REPLAN_INTERVAL_TURN_TIMES
+    from mal_planner.closedloop.loop import DEVIATION_ACCURACIES, REPLAN_INTERVAL_TURN_TIMES
     from mal_planner.scales import Scales
     from mal_planner.scenario import load_scenario
     from mal_planner.units import METRES_PER_NM
@@ -203,7 +203,7 @@ def closed_loop_params(params: str, scenario: str, out: Path) -> str:
     data = yaml.safe_load(Path(params).read_text(encoding="utf-8")) or {}
     values = data.setdefault("planner", {}).setdefault("ros__parameters", {})
     values.update(use_sim_time=True, settle_time_s=0.0, tracking_margins=True,
-                  deviation_threshold_m=DEVIATION_PER_SEPARATION * sc.separation_nm * METRES_PER_NM,
+                  deviation_threshold_m=DEVIATION_ACCURACIES * Scales.of(sc).accuracy_nm * METRES_PER_NM,
                   min_replan_interval_s=Scales.of(sc).seconds(REPLAN_INTERVAL_TURN_TIMES))
     path = out / "planner.closed_loop.params.yaml"
     path.write_text(yaml.safe_dump(data), encoding="utf-8")
