@@ -139,7 +139,7 @@ def tracking_margins(margins: SafetyMargins, scales: Scales, threshold_nm: float
     0.09-nm hole against 0.05 nm). The airspace keeps :data:`TRACKING_AIRSPACE_MARGIN` path accuracies: plans ride
     the floor and the ceiling, where the flown path strays vertically by the load-factor lag (campaigns: up to 0.4
     accuracies); the runway lies on the floor, so the threshold is crossed that high (thesis 4.6 m, a terminal area
-    9 m: inside the touchdown window's 50 ft). Plans keep :data:`BANK_RESERVE` of the bank limit for the guidance's
+    29 ft: inside the touchdown window's 0-100 ft). Plans keep :data:`BANK_RESERVE` of the bank limit for the guidance's
     feedback: a plan that turns at the limit onto the threshold leaves none to take out an error there.
     ``bank_limit_rad``: the smallest bank limit of the scenario's aircraft."""
     return replace(margins, separation=max(margins.separation, 2.0 * threshold_nm / scales.accuracy_nm),
@@ -166,8 +166,10 @@ class ClosedLoop:
         self.noise = RadarNoise(opts.radar_noise_m, None if seed is None else seed + 1)
         self.published: dict[str, Reference] = {}
         """The plan each aircraft flies now, as the service knows it."""
-        self.upcoming: dict[str, Reference] = {}
-        """Plans handed out that start later (flown from their start)."""
+        self.upcoming: list[tuple[PlanResult, Replan]] = []
+        """Plans arrived that start later: handed out when they start."""
+        self.last_plan_at = 0.0
+        """When the latest plan was handed out (or a replan failed): no deviation replan for a turn time after."""
         self.replans: list[Replan] = []
         self.filter = DeviationFilter(self.scales.seconds(opts.track_filter_turn_times), opts.radar_period_s)
         self.threshold = opts.deviation_nm if opts.deviation_nm is not None else max(
@@ -241,43 +243,50 @@ class ClosedLoop:
             out[cs] = Track(cs, t1, state, tr.speed, tr.wake)
         return out
 
-    def _deliver(self, result: PlanResult, at: float) -> None:
-        for traj in result.landing.trajectories if result.landing else []:
-            ref = Reference(traj.t + result.start_time, traj.states)
-            self.upcoming[traj.callsign] = ref
-            self.sim.set_plan(traj.callsign, ref, at)
+    def _deliver(self, result: PlanResult, record: Replan, at: float) -> None:
+        """A plan has arrived at ``at``: it is handed out when it starts (at once if it started already)."""
+        self.upcoming.append((result, record))
         self._take_up(at)
 
     def _take_up(self, t: float) -> None:
-        """Plans handed out that the aircraft fly from ``t`` on (one that starts later is flown from its start, the
-        previous one until then) become the plans the service checks the tracks against."""
-        for cs, ref in list(self.upcoming.items()):
-            if ref.start <= t:
-                self.filter.replanned(cs, self.published.get(cs), ref, max(ref.start, t))
-                self.published[cs] = ref
-                del self.upcoming[cs]
+        """Arrived plans that start by ``t`` are handed out, unless stale: the aircraft fly them from ``t`` on, and the
+        service checks the tracks against them."""
+        for result, record in [u for u in self.upcoming if u[0].start_time <= t]:
+            self.upcoming.remove((result, record))
+            stale = self._stale(result, record, t)
+            if stale is not None:  # the aircraft keep the plans they fly; the next radar update asks again
+                record.ok, record.message = False, stale
+                log.info("t=%.1f s: plan %s", t, stale)
+                self.last_plan_at = -math.inf  # ask again at the next radar update
+                continue
+            for traj in result.landing.trajectories if result.landing else []:
+                ref = Reference(traj.t + result.start_time, traj.states)
+                self.filter.replanned(traj.callsign, self.published.get(traj.callsign), ref, t)
+                self.published[traj.callsign] = ref
+                self.sim.set_plan(traj.callsign, ref, t)
+            self.last_plan_at = t
 
-    def _stale(self, result: PlanResult, record: Replan) -> str | None:
-        """Why a plan that has just arrived is not handed out (None: it is): the tracks now stray more than the
-        replan threshold from it (its planning took longer than the lead it was made with, and the aircraft flew
-        on elsewhere). Handed out, it would ask for the next replan at once, from aircraft turning to join it."""
+    def _stale(self, result: PlanResult, record: Replan, t: float) -> str | None:
+        """Why a plan is not handed out when it starts (None: it is): the tracks then stray more than the replan
+        threshold from it (the aircraft flew on elsewhere while it was planned: its planning took longer than the
+        lead it was made with, or the prediction along the old plans was off). Handed out, it would ask for the next
+        replan at once, from aircraft turning to join it."""
         worst, who = 0.0, ""
         for traj in result.landing.trajectories if result.landing else []:
             flying = self.published.get(traj.callsign)
-            here = None if flying is None else self.filter.estimate(traj.callsign, flying, self.sim.t)
-            t = self.sim.t - result.start_time
-            if here is None or not 0.0 <= t <= float(traj.t[-1]):
+            here = None if flying is None else self.filter.estimate(traj.callsign, flying, t)
+            if here is None or not 0.0 <= t - result.start_time <= float(traj.t[-1]):
                 continue
-            dev = float(np.linalg.norm(traj.state_at(np.array([t]))[0, :3] - here))
+            dev = float(np.linalg.norm(traj.state_at(np.array([t - result.start_time]))[0, :3] - here))
             if dev > worst:
                 worst, who = dev, traj.callsign
         if worst <= self.threshold:
             return None
-        return (f"stale: arrived {self.sim.t - record.t:.1f} s after its start, {who} {worst:.3f} nm from it "
-                f"(threshold {self.threshold:.3f} nm); not handed out")
+        return (f"stale: {who} {worst:.3f} nm from it when it starts, {t - record.t:.1f} s after the tracks it was "
+                f"made from (threshold {self.threshold:.3f} nm); not handed out")
 
     def _trigger(self, tracks: dict[str, Track], since_last: float) -> str | None:
-        if since_last < self.min_interval:
+        if since_last < self.min_interval or self.upcoming:
             return None
         for cs in tracks:
             if cs not in self.published:
@@ -307,37 +316,35 @@ class ClosedLoop:
         self.planner.options = replace(self.planner.options,
                                        time_limit_s=replan_limit if limit is None else min(limit, replan_limit))
         if result is not None:
-            self._deliver(result, 0.0)
+            self._deliver(result, first, 0.0)
         t_max = opts.max_time_s
         if t_max is None:
             last = max(result.landing_times().values()) if result is not None else max(
                 float(np.linalg.norm(a.position - self.scenario.runway_state[:3])) / a.speed * 2.0
                 for a in self.scenario.aircraft)
             t_max = last + self.scales.seconds(OVERRUN_TURN_TIMES)
-        last_arrival = 0.0
         pending: tuple[float, Replan, PlanResult | None] | None = None
         next_radar = opts.radar_period_s
         while not self.sim.done and self.sim.t < t_max:
-            if pending is not None and pending[0] <= next_radar:
+            starts = [u[0].start_time for u in self.upcoming if u[0].start_time < next_radar]
+            if pending is not None and pending[0] <= min(starts, default=next_radar):
                 self.sim.advance(pending[0])
                 arrived, record, result = pending
                 pending = None
-                stale = self._stale(result, record) if result is not None else None
-                if stale is not None:  # the aircraft keep the plans they fly; the next radar update asks again
-                    record.ok, record.message = False, stale
-                    log.info("t=%.1f s: plan %s", self.sim.t, stale)
-                    continue
+                self.last_plan_at = arrived  # a failed replan too: the next one no sooner than a turn time later
                 if result is not None:
-                    self._deliver(result, arrived)
-                last_arrival = arrived
+                    self._deliver(result, record, arrived)
+                continue
+            if starts:  # a plan that arrived earlier starts: handed out then
+                self.sim.advance(min(starts))
+                self._take_up(self.sim.t)
                 continue
             self.sim.advance(next_radar)
             next_radar += opts.radar_period_s
-            self._take_up(self.sim.t)
             tracks = self._filtered(self._tracks())
             if pending is not None:
                 continue
-            reason = self._trigger(tracks, self.sim.t - last_arrival) if tracks else None
+            reason = self._trigger(tracks, self.sim.t - self.last_plan_at) if tracks else None
             if reason is None:
                 continue
             lead = LEAD_PER_LATENCY * (self.replans[-1] if self.replans else first).charged_s

@@ -34,9 +34,10 @@ STEPS_PER_TURN_TIME = 40
 """Guidance and integration steps per turn time (thesis: 0.19 s; a terminal area at 150 kt and 30 deg: 0.34 s)."""
 RUNWAY_WIDTH_M = 45.0
 """ICAO Annex 14's runway width for code letters D-F (wide-bodies): the centreline +- 22.5 m is on the runway."""
-THRESHOLD_HEIGHT_BAND_FT = 50.0
-"""How far above or below the planned touchdown point an aircraft may cross the threshold: ICAO's threshold
-crossing height of an ILS approach is 50 ft."""
+THRESHOLD_HEIGHT_BAND_FT = 100.0
+"""How high above the runway's threshold an aircraft may cross it: an ILS's reference datum is 50 ft above the
+threshold; below the threshold's elevation an aircraft is in the ground, above 100 ft it lands too long (the flown
+plans cross it at their airspace margin, thesis 15 ft, a terminal area 29 ft)."""
 LOAD_FACTOR_LAG_S = 0.5
 """Time constant of the flown load factors behind the commanded ones: a transport aircraft's roll mode."""
 
@@ -173,7 +174,7 @@ class FlightSimulator:
             if abs(lateral) <= self._lost_beyond and abs(height) <= self._lost_beyond:
                 t_cross = t - (1.0 - w) * (t - ac.t[-1])
                 ac.state = cross
-                inside = abs(lateral) <= self._half_width and abs(height) <= self._band
+                inside = abs(lateral) <= self._half_width and 0.0 <= height <= self._band
                 self._end(ac, LANDED if inside else MISSED, t_cross,
                           f"threshold crossed {nm_to_m(lateral):+.1f} m from the centreline, "
                           f"{m_to_ft(nm_to_m(height)):+.0f} ft from the touchdown height")
