@@ -1,6 +1,7 @@
-"""Shared fixtures: the two ROS backends, the colcon-built mal_msgs; CI turns ROS 2 skips into failures.
+"""Shared fixtures: the two ROS backends, the colcon-built mal_msgs; CI turns ROS 2 and extras skips into failures.
 
-With CI=true, a test skipped because ROS 2 Jazzy is missing fails: CI must run the interop tests.
+With CI=true, a test skipped because ROS 2 Jazzy or an optional extra (``adsb``, ``bluesky``: the test command
+installs them) is missing fails: CI must run the interop tests and the tests of the extras.
 """
 
 from __future__ import annotations
@@ -14,6 +15,8 @@ from dds_support import dds_env, snippet, snippet_factory  # noqa: F401  (fixtur
 from ros2_env import SKIP_PREFIX, colcon_build_mal_msgs, ros2_env, skip_without_ros2
 
 BACKENDS = ("cyclone", "rclpy")
+OPTIONAL_EXTRA = "(optional extra '"
+"""In the skip reason of a test that needs an optional extra (bluesky, adsb)."""
 
 
 @pytest.hookimpl(hookwrapper=True)
@@ -22,9 +25,9 @@ def pytest_runtest_makereport(item: pytest.Item, call: pytest.CallInfo) -> objec
     report = outcome.get_result()
     if os.environ.get("CI", "").lower() in ("1", "true", "yes") and report.skipped:
         reason = str(report.longrepr[2] if isinstance(report.longrepr, tuple) else report.longrepr)
-        if SKIP_PREFIX in reason:
+        if SKIP_PREFIX in reason or OPTIONAL_EXTRA in reason:
             report.outcome = "failed"
-            report.longrepr = f"CI=true but the ROS 2 interop test was skipped: {reason}"
+            report.longrepr = f"CI=true but the test was skipped: {reason}"
 
 
 @pytest.fixture(scope="session")

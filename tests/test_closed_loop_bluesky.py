@@ -13,9 +13,10 @@ from pathlib import Path
 
 import pytest
 
-from mal_planner.closedloop.bluesky_sim import DEFAULT_FRAME, bluesky_available, make_simulator, wind_command
+from mal_planner.closedloop.bluesky_sim import DEFAULT_FRAME, bluesky_available, make_simulator
 from mal_planner.closedloop.simulator import FlightSimulator
 from mal_planner.geo import GeoFrame
+from mal_planner.geo.bluesky import wind_command
 from mal_planner.units import kt_to_nm_per_s
 
 NEEDS_BLUESKY = pytest.mark.skipif(not bluesky_available(), reason="bluesky-simulator is not installed (optional "

@@ -17,7 +17,7 @@ from mal_planner.figures.data import plan_view
 from mal_planner.figures.interactive import figure as html_figure
 from mal_planner.figures.interactive import write_html
 from mal_planner.pipeline import plan
-from mal_planner.report import result_to_dict, start_figures, write_outputs
+from mal_planner.report import result_to_dict, start_figures, validation_report, write_outputs
 from mal_planner.ros.node_params import PARAMETERS
 from mal_planner.scenario import load_scenario
 
@@ -90,7 +90,7 @@ def test_real_plan_writes_every_png_with_one_colour_per_aircraft(thesis_doc, tmp
     written = render(thesis_doc, tmp_path, want("png"))
     names = {p.stem for p in written}
     assert names == {"initial_paths_3d", "initial_x", "initial_y", "initial_z", "overview", "plan_view", "yz_view",
-                     "separation", "paths_3d", "states", "controls"}
+                     "separation", "sequence", "paths_3d", "states", "controls"}
     for path in written:
         img = matplotlib.image.imread(path)
         assert img.shape[0] > 300 and img[..., :3].std() > 0.05, path.name
@@ -135,7 +135,24 @@ def test_plan_json_without_geometry_still_renders() -> None:
     view = plan_view(doc)
     assert view.obstacles == () and view.gates == () and view.airspace[2].tolist() == [0.0, 0.25]
     fig = static.figure_overview(view, style.color_map(view.callsigns), view.separations())
-    assert len(fig.axes) == 5
+    assert len(fig.axes) == 6  # with the landing-sequence panel
+
+
+def test_real_plan_timeline_is_the_sequence_and_the_verified_spacing(thesis_result, thesis_doc) -> None:
+    tl = plan_view(thesis_doc).timeline
+    assert [s.callsign for s in tl.slots] == thesis_result.order == ["A1", "A2", "A3"]
+    landed = thesis_result.landing_times()
+    assert [s.landing_time for s in tl.slots] == pytest.approx([landed[cs] for cs in thesis_result.order])
+    assert all(s.fixed and s.delay == pytest.approx(0.0) for s in tl.slots) and tl.wake_table is None
+    assert [(g.pair, g.needed, g.wake, g.short) for g in tl.gaps] == [("A1->A2", 15.0, None, False),
+                                                                      ("A2->A3", 15.0, None, False)]
+    assert [g.gap for g in tl.gaps] == pytest.approx([g.gap_s for g in thesis_result.verification.landings])
+
+
+def test_report_embeds_the_sequence_figure(thesis_result) -> None:
+    text = validation_report(thesis_result)
+    section = text[text.index("## Landing sequence"):text.index("## Landing spacing")]
+    assert "![landing sequence" in section and "](sequence.png)" in section
 
 
 # -- plan.html -----------------------------------------------------------------------------------------------

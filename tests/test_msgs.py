@@ -91,10 +91,14 @@ def _sample_plan_response() -> object:
             header=header,
             aircraft=[
                 plan_cls(
-                    callsign="AF1", order=1, gate_time=10.0, landing_time=130.5, status=0, verified=True
+                    callsign="AF1", order=1, gate_time=10.0, landing_time=130.5, status=0, verified=True,
+                    wake_category="H", target_time=120.0, delay=10.5, latitude=[49.1, 49.05],
+                    longitude=[2.7, 2.6], altitude=[900.0, 119.5],
                 ),
                 plan_cls(callsign="BA2", order=2, gate_time=80.0, landing_time=210.0, status=1),
             ],
+            geodetic=True, origin_latitude=49.02667786, origin_longitude=2.56169447, origin_altitude=119.48,
+            course=265.43,
         ),
         paths=[path],
     )

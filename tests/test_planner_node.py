@@ -23,6 +23,7 @@ from dds_support import Snippet, coarse_params, dds_env, snippet  # noqa: F401  
 REPO = Path(__file__).resolve().parents[1]
 BAG = REPO / "data" / "thesis_radar.mcap"
 SCENARIO = REPO / "scenarios" / "thesis.yaml"
+GEO_SCENARIO = REPO / "scenarios" / "thesis_geodetic.yaml"  # the thesis at CDG 27R: the same local frame
 M_PER_NM = 1852.0
 BAG_T0 = 1_700_000_000.0  # first stamp in data/thesis_radar.mcap
 
@@ -36,8 +37,8 @@ def params_file(tmp_path: Path, extra: str = "") -> Path:
     return path
 
 
-def start_planner(start, params: Path, *extra: str) -> Snippet:
-    args = ["--scenario", str(SCENARIO), "--params", str(params), *extra]
+def start_planner(start, params: Path, *extra: str, scenario: Path = SCENARIO) -> Snippet:
+    args = ["--scenario", str(scenario), "--params", str(params), *extra]
     return start(f"import sys\nfrom mal_planner.ros.planner_node import main\nsys.exit(main({args!r}))\n")
 
 
@@ -101,6 +102,10 @@ diag = {kv.key: kv.value for kv in diags[-1].status[0].values}
 out = {"plan_stamp": msg_to_time(plan), "plan_frame": plan.header.frame_id, "diag_plans": diag["plans"],
        "order": [a.callsign for a in sorted(plan.aircraft, key=lambda a: a.order)],
        "status": [a.status for a in plan.aircraft], "landing": {a.callsign: a.landing_time for a in plan.aircraft},
+       "geodetic": plan.geodetic, "origin": [plan.origin_latitude, plan.origin_longitude, plan.origin_altitude,
+                                             plan.course],
+       "sequence": {a.callsign: [a.wake_category, a.target_time, a.delay] for a in plan.aircraft},
+       "lat_lon_alt": {a.callsign: [list(a.latitude), list(a.longitude), list(a.altitude)] for a in plan.aircraft},
        "paths": {}}
 for cs, path in got.items():
     if not path.poses:
@@ -251,7 +256,7 @@ print("published", flush=True)
 def test_replay_to_paths_services_and_latched(backend_snippet, snippet, tmp_path: Path) -> None:  # noqa: F811
     """Replayed radar -> planner -> paths in a separate subscriber; both services; late subscriber; NaN input;
     parameters at run time; a failed plan keeps the last plan and the next trigger plans again."""
-    planner = start_planner(backend_snippet, params_file(tmp_path))
+    planner = start_planner(backend_snippet, params_file(tmp_path), scenario=GEO_SCENARIO)
     with dump_on_failure(planner=planner):
         wait_for(planner, "planner ready", 30)
         listener = snippet(PATH_LISTENER)
@@ -281,6 +286,16 @@ def test_replay_to_paths_services_and_latched(backend_snippet, snippet, tmp_path
             assert p["qnorm"] == pytest.approx(1.0, abs=1e-6)
             if rank:  # landing order = order of the landing times
                 assert result["landing"][cs] > result["landing"][result["order"][rank - 1]]
+            # the sequence (wake category, target, delay) and the path on the Earth, sample for sample
+            wake, target, delay = result["sequence"][cs]
+            assert wake == "M" and target > 0.0 and delay == pytest.approx(result["landing"][cs] - target)
+            lat, lon, alt = result["lat_lon_alt"][cs]
+            assert len(lat) == len(lon) == len(alt) == p["n"]
+            # ends at the CDG 27R threshold (49.02667786 N, 2.56169447 E, 392 ft): 1e-4 deg is 7-11 m
+            assert lat[-1] == pytest.approx(49.02667786, abs=1e-4) and lon[-1] == pytest.approx(2.56169447, abs=1e-4)
+            assert alt[-1] == pytest.approx(392.0 * 0.3048, abs=5.0)
+        assert result["geodetic"] is True
+        assert result["origin"] == pytest.approx([49.02667786, 2.56169447, 392.0 * 0.3048, 265.43])
 
         # Services from a client process; radar callbacks keep running while the service waits for its plan.
         go = tmp_path / "go"
@@ -433,6 +448,39 @@ def test_plan_scenario_extrapolates_and_adds_unknown_aircraft() -> None:
     only_a1 = build_plan_scenario(sc, {"A1": tracks["A1"]}, 12.0, landing_shift=2.0)
     assert only_a1.scenario.aircraft[0].landing_time == pytest.approx(153.0)
 
+
+
+def test_plan_scenario_uses_the_radars_wake_categories() -> None:
+    """Issue 18: under a wake table the radar's categories count; one the table does not know (or none) is the
+    worst case in each role; an unknown aircraft is slotted its pair's wake spacing behind the one before."""
+    from dataclasses import replace
+
+    import numpy as np
+
+    from mal_planner.initializer.schedule import landing_spacing
+    from mal_planner.ros.plan_scenario import build_plan_scenario
+    from mal_planner.ros.state_store import Track
+    from mal_planner.scenario import load_scenario
+    from mal_planner.sequencing.wake import wake_distance_nm
+
+    sc = replace(load_scenario(SCENARIO), wake="icao")  # the file's aircraft are all M
+    a1 = sc.aircraft_by_callsign("A1")
+    heavy_behind = {"A1": Track("A1", 0.0, a1.state0.copy(), a1.speed),
+                    "L9": Track("L9", 0.0, np.array([0.0, 5.0, 0.2, 0.0, -np.pi / 2]), 0.04, "L"),
+                    "Q1": Track("Q1", 0.0, np.array([-2.0, 5.0, 0.2, 0.0, -np.pi / 2]), 0.04, "A"),  # RECAT's
+                    "N0": Track("N0", 0.0, np.array([2.0, 5.0, 0.2, 0.0, -np.pi / 2]), 0.04)}
+    inputs = build_plan_scenario(sc, heavy_behind, 0.0, landing_shift=0.0)
+    got = {a.callsign: a for a in inputs.scenario.aircraft}
+    assert (got["A1"].wake_category, got["L9"].wake_category) == ("M", "L")
+    assert got["Q1"].wake_category is None and got["N0"].wake_category is None
+    assert wake_distance_nm("icao", None, "L", 3.0) == 8.0 and wake_distance_nm("icao", "H", None, 3.0) == 6.0
+    # slotted after A1's fixed 155 s in order of their earliest times, each its pair's spacing (wake included)
+    order = sorted(got.values(), key=lambda a: a.landing_time)
+    assert order[0].callsign == "A1" and order[0].landing_time == pytest.approx(155.0)
+    for leader, follower in zip(order, order[1:], strict=False):
+        assert follower.landing_time - leader.landing_time >= landing_spacing(inputs.scenario, leader, follower) - 1e-9
+    behind_m = order[1]  # the first slotted follows A1 (M): 5 nm for an L or an unknown
+    assert behind_m.landing_time - 155.0 >= 5.0 / 0.04 - 1e-9
 
 
 def test_plan_scenario_leaves_out_an_aircraft_that_cannot_stay_inside_the_airspace() -> None:

@@ -207,6 +207,8 @@ def test_radar_intake_gates_and_burst(backend_snippet, snippet, tmp_path: Path) 
     ("degree", 1000, "must be <= 16"), ("segments", 100000, "must be <= 64"), ("output_dt", 1e-9, "must be >= 0.01"),
     ("settle_time_s", 1e12, "must be <= 600"), ("frame_id", "", "expected a frame name"),
     ("initializer", "ompl:NoSuchPlanner", "no such planner (known: multi-rrt, ompl:"),
+    ("wake_table", "faa", "expected one of scenario, icao, recat-eu, none"),
+    ("sequencing", "fifo", "expected one of scenario, fcfs, optimal"),
 ])
 def test_bad_parameters_are_refused_with_a_reason(name: str, value: object, why: str) -> None:
     """At start (declare_parameters logs and keeps the default) and on `ros2 param set` (update_params): one line

@@ -16,6 +16,9 @@ from __future__ import annotations
 from dataclasses import dataclass
 from typing import TYPE_CHECKING, Any
 
+import numpy as np
+from rosbags.interfaces import Nodetype
+
 from ._interfaces import interface_dir
 from ._store import service_names, type_description, type_hash, typestore
 
@@ -120,9 +123,22 @@ def to_rosbags(msg: Any) -> Any:
     ros_name = type(msg).__msgtype__
     cls = store.types[ros_name]
     kwargs = {}
-    for fname, _desc in store.fielddefs[ros_name][1]:
-        kwargs[fname] = _convert(getattr(msg, fname), to_rosbags)
+    for fname, desc in store.fielddefs[ros_name][1]:
+        value = _convert(getattr(msg, fname), to_rosbags)
+        dtype = _primitive_array_dtype(desc)
+        kwargs[fname] = value if dtype is None else np.asarray(value, dtype=dtype)
     return cls(**kwargs) if kwargs else cls()
+
+
+def _primitive_array_dtype(desc: Any) -> str | None:
+    """The numpy dtype rosbags wants for an array or sequence of numbers or bools (None for other fields)."""
+    if desc[0] not in (Nodetype.ARRAY, Nodetype.SEQUENCE):
+        return None
+    element = desc[1][0]
+    if element[0] != Nodetype.BASE or element[1][0] == "string":
+        return None
+    name = element[1][0]
+    return {"byte": "uint8", "char": "uint8", "octet": "uint8", "bool": "bool"}.get(name, name)
 
 
 def from_rosbags(msg: Any) -> Any:

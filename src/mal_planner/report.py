@@ -18,6 +18,11 @@ from mal_planner.units import nm_per_s_to_kt, nm_to_ft
 
 SCHEMA = "mal-planner/plan"
 SCHEMA_VERSION = 1
+SEQUENCE_FIGURE = ("![landing sequence: who lands when, each gap against the spacing it needs](sequence.png)\n\n"
+                   "`sequence.png` (written with the PNG figures): a row per aircraft in landing order, its landing "
+                   "(▼), target (|) and delay (shaded); between consecutive landings the gap got against the spacing "
+                   "needed (grey band), red where short.")
+"""The landing-sequence section's figure (report.md sits beside the PNGs)."""
 
 
 def _num(value: float | None) -> float | None:
@@ -188,14 +193,16 @@ def validation_report(result: PlanResult) -> str:
     sequence = _sequence(result)
     if sequence is not None:
         lines += ["", f"## Landing sequence ({sequence['strategy']}, wake table {sequence['wake']})", "",
-                  "| slot | aircraft | wake | target (s) | lands (s) | delay (s) |", "|---|---|---|---|---|---|"]
+                  SEQUENCE_FIGURE, "", "| slot | aircraft | wake | target (s) | lands (s) | delay (s) |",
+                  "|---|---|---|---|---|---|"]
         for r in sequence["aircraft"]:
             cells = ["-" if r[k] is None else f"{r[k]:.2f}" for k in ("target_s", "landing_time_s", "delay_s")]
             lines.append(f"| {r['slot']} | {r['callsign']} | {r['wake_category'] or '-'} | {' | '.join(cells)} |")
         lines += ["", f"Total delay against the targets: {sequence['total_delay_s']:.1f} s"]
     if rep.landings:
-        lines += ["", "## Landing spacing (consecutive pairs)", "",
-                  "| pair | wake | table (nm) | needs (s) | got (s) |", "|---|---|---|---|---|"]
+        lines += ["", "## Landing spacing (consecutive pairs)", ""]
+        lines += [SEQUENCE_FIGURE, ""] if sequence is None else []
+        lines += ["| pair | wake | table (nm) | needs (s) | got (s) |", "|---|---|---|---|---|"]
         for g in rep.landings:
             lines.append(f"| {g.pair} | {g.wake or '-'} | {'-' if g.wake_nm is None else f'{g.wake_nm:g}'} | "
                          f"{g.needed_s:.2f} | {g.gap_s:.3f} |")

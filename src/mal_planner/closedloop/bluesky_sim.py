@@ -43,6 +43,7 @@ from mal_planner.geo.bluesky import (
     run_commands,
     start_bluesky,
     waypoint_interval_s,
+    wind_command,
 )
 from mal_planner.geo.frame import GeoFrame
 from mal_planner.scales import Scales
@@ -60,15 +61,6 @@ EXTENSION_TURN_TIMES = 1.0
 def bluesky_available() -> bool:
     """True when bluesky-simulator is installed."""
     return importlib.util.find_spec("bluesky") is not None
-
-
-def wind_command(frame: GeoFrame, wind: tuple[float, float]) -> str | None:
-    """BlueSky's ``WIND`` for a constant local wind (w_x, w_y) nm/s: from which true direction, kt; None if calm."""
-    speed = math.hypot(*wind)
-    if speed == 0.0:
-        return None
-    towards, _ = frame.direction_to_geodetic([0.0, 0.0, 0.0], math.atan2(wind[1], wind[0]), 0.0)
-    return f"WIND {frame.lat_deg:.8f} {frame.lon_deg:.8f} {(towards + 180.0) % 360.0:.4f} {nm_per_s_to_kt(speed):.4f}"
 
 
 class BlueSkySimulator(FlightSimulator):

@@ -8,7 +8,8 @@ from __future__ import annotations
 
 import itertools
 import json
-from dataclasses import dataclass, field
+import re
+from dataclasses import dataclass, field, replace
 from pathlib import Path
 
 import numpy as np
@@ -45,6 +46,54 @@ class PairSeparation:
 
 
 @dataclass(frozen=True)
+class SlotView:
+    """One landing of the time line (times in s; None where the plan does not say)."""
+
+    callsign: str
+    slot: int
+    landing_time: float
+    wake_category: str | None = None
+    earliest: float | None = None
+    target: float | None = None
+    delay: float | None = None
+    """Landing minus target."""
+    fixed: bool = False
+
+
+@dataclass(frozen=True)
+class GapView:
+    """Two consecutive landings: the time between them against the time they need."""
+
+    leader: str
+    follower: str
+    gap: float
+    needed: float | None = None
+    """The scenario's spacing or the wake minimum; None when the plan carries no verification."""
+    wake: str | None = None
+    """leader->follower wake categories when a wake table applies."""
+    wake_nm: float | None = None
+    short: bool = False
+    """Less than needed: the verification failed this pair's spacing."""
+
+    @property
+    def pair(self) -> str:
+        return f"{self.leader}->{self.follower}"
+
+
+@dataclass(frozen=True)
+class LandingTimeline:
+    """Who lands when and the spacing of each consecutive pair (plan.json ``sequence`` and
+    ``verification.landings``, or the landing times alone)."""
+
+    slots: list[SlotView] = field(default_factory=list)
+    """In landing order."""
+    gaps: list[GapView] = field(default_factory=list)
+    strategy: str | None = None
+    wake_table: str | None = None
+    total_delay: float | None = None
+
+
+@dataclass(frozen=True)
 class PlanView:
     name: str
     status: str
@@ -59,6 +108,7 @@ class PlanView:
     phase_names: list[str] = field(default_factory=list)
     verification_pairs: dict[str, tuple[float, float]] = field(default_factory=dict)
     """pair -> (minimum distance nm, at time s) from the verification."""
+    timeline: LandingTimeline = field(default_factory=LandingTimeline)
 
     @property
     def optimized(self) -> bool:
@@ -103,6 +153,66 @@ def _initial(callsign: str, doc: dict) -> Trajectory:
     return Trajectory(callsign, np.asarray(wp["t"], float), states)
 
 
+_SPACING_REASON = re.compile(r"^(\S+->\S+): landings ")
+
+
+def _float(value: float | str | None) -> float | None:
+    return None if value is None else float(value)
+
+
+def _landing_slots(doc: dict) -> list[SlotView]:
+    """The landings in time order: from ``sequence``, else the aircraft's (or the verification's) landing times."""
+    rows = [r for r in ((doc.get("sequence") or {}).get("aircraft") or []) if r.get("landing_time_s") is not None]
+    if rows:
+        slots = [SlotView(r["callsign"], int(r.get("slot") or k), float(r["landing_time_s"]), r.get("wake_category"),
+                          _float(r.get("earliest_s")), _float(r.get("target_s")), _float(r.get("delay_s")),
+                          bool(r.get("fixed"))) for k, r in enumerate(rows, start=1)]
+        return sorted(slots, key=lambda s: (s.landing_time, s.slot))
+    verified = {a["callsign"]: a.get("landing_time") for a in (doc.get("verification") or {}).get("aircraft", [])}
+    times = []
+    for a in sorted(doc.get("aircraft", []), key=lambda a: a.get("order", 0)):
+        t = a.get("landing_time_s")
+        t = verified.get(a["callsign"]) if t is None else t
+        if t is not None:
+            times.append((float(t), a["callsign"]))
+    times.sort(key=lambda item: item[0])
+    return [SlotView(cs, k, t) for k, (t, cs) in enumerate(times, start=1)]
+
+
+def _is_short(pair: str, gap: float, needed: float | None, verification: dict) -> bool:
+    """Whether the verification failed the pair's spacing (from its reasons; without them, the gap against the
+    need less the landing-time tolerance)."""
+    if "reasons" in verification:
+        return any((m := _SPACING_REASON.match(r)) is not None and m.group(1) == pair for r in verification["reasons"])
+    tol = float((verification.get("tolerances") or {}).get("landing_time_s", 0.0))
+    return needed is not None and gap < needed - tol
+
+
+def landing_timeline(doc: dict) -> LandingTimeline:
+    """The landing time line of a plan.json document; works without ``sequence`` and without a wake table."""
+    slots = _landing_slots(doc)
+    ver = doc.get("verification") or {}
+    gaps: list[GapView] = []
+    for g in ver.get("landings") or []:
+        leader, follower = g["pair"].split("->", 1)
+        needed = _float(g.get("needed_s"))
+        gaps.append(GapView(leader, follower, float(g["gap_s"]), needed, g.get("wake"), _float(g.get("wake_nm")),
+                            _is_short(g["pair"], float(g["gap_s"]), needed, ver)))
+    if not gaps:
+        gaps = [GapView(a.callsign, b.callsign, b.landing_time - a.landing_time)
+                for a, b in itertools.pairwise(slots)]
+    categories: dict[str, str] = {}
+    for g in gaps:  # without ``sequence``: the categories from the verification's wake pairs
+        if g.wake and "->" in g.wake:
+            categories[g.leader], categories[g.follower] = g.wake.split("->", 1)
+    slots = [s if s.wake_category or s.callsign not in categories else
+             replace(s, wake_category=categories[s.callsign]) for s in slots]
+    seq = doc.get("sequence") or {}
+    wake = seq.get("wake")
+    return LandingTimeline(slots, gaps, seq.get("strategy"), None if wake in (None, "none") else wake,
+                           _float(seq.get("total_delay_s")))
+
+
 def _extent(aircraft: list[AircraftView]) -> np.ndarray:
     """The paths' bounding box: the airspace of a plan.json written before it carried the geometry."""
     pts = np.concatenate([a.trajectory.positions for a in aircraft])
@@ -136,6 +246,7 @@ def plan_view(doc: dict) -> PlanView:
         separation_nm=sc.get("separation_nm"),
         phase_names=list(optimizer.get("phases") or []),
         verification_pairs={p["pair"]: (p["min_distance_nm"], p["at_time_s"]) for p in ver.get("pairs", [])},
+        timeline=landing_timeline(doc),
     )
 
 

@@ -12,7 +12,7 @@ from pathlib import Path
 import numpy as np
 
 from mal_planner.figures import style
-from mal_planner.figures.data import AircraftView, PairSeparation, PlanView
+from mal_planner.figures.data import AircraftView, GapView, LandingTimeline, PairSeparation, PlanView, SlotView
 from mal_planner.figures.geometry import gate_outline, obstacle_mesh, projection, section
 
 style.apply_style()
@@ -31,6 +31,9 @@ SERIES = {
 }
 HIGHLIGHTED_PAIRS = 8
 """Separation figure: the pairs that come closest get a colour and a legend entry, the rest are grey."""
+NEEDED_COLOR = "#c8c8c8"
+"""Sequence figure: the spacing a pair needs, a light band under the bracket of what it got."""
+GAP_COLOR = "#404040"
 
 
 # -- helpers ---------------------------------------------------------------------------------------------
@@ -297,6 +300,101 @@ def draw_separation(ax, view: PlanView, seps: list[PairSeparation], colors: dict
         ax.plot([], [], color="0.65", lw=0.7, label=f"{len(ranked) - HIGHLIGHTED_PAIRS} other pairs")
 
 
+def gap_label(g: GapView, pair: bool = True) -> str:
+    """'B1→B3  100.0 ≥ 100.0 s  H→H 4 nm': the gap got against the spacing needed (and the wake pair)."""
+    digits = 3 if g.short and g.needed is not None and f"{g.gap:.1f}" == f"{g.needed:.1f}" else 1
+    text = f"{g.gap:.{digits}f} s" if g.needed is None else (
+        f"{g.gap:.{digits}f} {'<' if g.short else '≥'} {g.needed:.{digits}f} s")
+    if g.wake:
+        text += f"  {g.wake.replace('->', '→')}" + ("" if g.wake_nm is None else f" {g.wake_nm:g} nm")
+    if g.short:
+        text += "  SHORT"
+    return f"{g.leader}→{g.follower}  {text}" if pair else text
+
+
+def _slot_label(s: SlotView) -> str:
+    """'B1 (H)', 'A1 (M, fixed)': callsign, wake category and whether the landing time was fixed."""
+    notes = [n for n in (s.wake_category, "fixed" if s.fixed else None) if n]
+    return f"{s.callsign} ({', '.join(notes)})" if notes else s.callsign
+
+
+def draw_sequence(ax, tl: LandingTimeline, colors: dict[str, str], pair_labels: bool = True) -> None:
+    """Landing time line: a row per aircraft in landing order (earliest-to-landing bar, delay shaded, target |,
+    landing v) and, between consecutive rows, a bracket of the gap got over a band of the spacing needed (red
+    where short); the gap labels go in a column right of the axes."""
+    row = {s.callsign: k for k, s in enumerate(tl.slots)}
+    small = style.FONT_SIZE - 1.5
+    for k, s in enumerate(tl.slots):
+        c = colors.get(s.callsign, "0.3")
+        if s.earliest is not None:
+            ax.plot([min(s.earliest, s.landing_time), s.landing_time], [k, k], color=c, lw=1.2, alpha=0.7,
+                    solid_capstyle="butt", zorder=2)
+        if s.target is not None and s.landing_time > s.target:
+            ax.barh(k, s.landing_time - s.target, left=s.target, height=0.36, color=c, alpha=0.28, lw=0, zorder=1)
+        if s.target is not None:
+            ax.plot(s.target, k, marker="|", ms=9, mew=1.6, color="0.15", ls="", zorder=4)
+        ax.plot(s.landing_time, k, marker=style.MARKERS["land"], ms=7, color=c, mec="k", mew=0.5, ls="", zorder=5)
+        if s.delay is not None and abs(s.delay) >= 0.05:
+            ax.annotate(f"{s.delay:+.1f} s", (s.landing_time, k), xytext=(6, 0), textcoords="offset points",
+                        va="center", ha="left", fontsize=small, color="0.35")
+    for g in tl.gaps:
+        if g.leader not in row or g.follower not in row:
+            continue
+        (t0, y0), (t1, y1) = ((tl.slots[row[cs]].landing_time, row[cs]) for cs in (g.leader, g.follower))
+        y = (y0 + y1) / 2
+        color = style.REQUIRED_COLOR if g.short else GAP_COLOR
+        if g.needed is not None:
+            ax.plot([t0, t0 + g.needed], [y + 0.14, y + 0.14], color=style.REQUIRED_COLOR if g.short else NEEDED_COLOR,
+                    lw=4, alpha=0.35 if g.short else 1.0, solid_capstyle="butt", zorder=1)
+        ax.plot([t0, t0], [y0, y], [t1, t1], [y, y1], color=color, lw=0.6, ls=":", zorder=2)
+        ax.annotate("", xy=(t1, y), xytext=(t0, y), zorder=3,
+                    arrowprops={"arrowstyle": "|-|, widthA=0.25, widthB=0.25", "color": color, "lw": 1.0,
+                                "shrinkA": 0, "shrinkB": 0})
+        ax.annotate(gap_label(g, pair_labels), (1.0, y), xycoords=("axes fraction", "data"), xytext=(6, 0),
+                    textcoords="offset points", va="center", ha="left", fontsize=small, color=color,
+                    fontweight="bold" if g.short else "normal", annotation_clip=False)
+    n = len(tl.slots)
+    ax.set_yticks(range(n), [_slot_label(s) for s in tl.slots])
+    for label, s in zip(ax.get_yticklabels(), tl.slots, strict=True):
+        label.set_color(colors.get(s.callsign, "0.3"))
+        label.set_fontweight("bold")
+    ax.set_ylim(max(n, 1) - 0.5, -0.5)
+    ax.grid(False, axis="y")
+    times = [t for s in tl.slots for t in (s.earliest, s.target, s.landing_time) if t is not None]
+    times += [tl.slots[row[g.leader]].landing_time + g.needed for g in tl.gaps
+              if g.needed is not None and g.leader in row]
+    if times:
+        lo, hi = min(times), max(times)
+        span = max(hi - lo, 10.0)
+        ax.set_xlim(lo - 0.04 * span, hi + 0.12 * span)  # room right for the delay labels
+    ax.set_xlabel("time (s)")
+
+
+def sequence_handles(tl: LandingTimeline) -> list:
+    """Legend entries of the sequence figure (only what it draws)."""
+    from matplotlib.patches import Patch
+
+    slots = tl.slots
+    handles = [Line2D([], [], color="0.3", marker=style.MARKERS["land"], mec="k", ls="", label="landing")]
+    if any(s.earliest is not None for s in slots):
+        handles.append(Line2D([], [], color="0.3", lw=1.2, label="earliest to landing"))
+    if any(s.target is not None for s in slots):
+        handles += [Line2D([], [], color="0.15", marker="|", ms=9, mew=1.6, ls="", label="target"),
+                    Patch(color="0.3", alpha=0.28, lw=0, label="delay")]
+    if any(g.needed is not None for g in tl.gaps):
+        handles.append(Line2D([], [], color=NEEDED_COLOR, lw=4, label="spacing needed"))
+    handles.append(Line2D([], [], color=GAP_COLOR, lw=1.0, marker="|", label="gap got"))
+    if any(g.short for g in tl.gaps):
+        handles.append(Line2D([], [], color=style.REQUIRED_COLOR, lw=1.0, marker="|", label="gap short"))
+    return handles
+
+
+def _label_column(tl: LandingTimeline, pair: bool, fontsize: float) -> float:
+    """Width (inches) of the gap labels right of the sequence axes."""
+    longest = max((len(gap_label(g, pair)) for g in tl.gaps), default=0)
+    return (longest * 0.58 + 1.5) * fontsize / 72.0
+
+
 # -- figures -----------------------------------------------------------------------------------------------
 def figure_paths_3d(view: PlanView, colors: dict[str, str], initial: bool = False):
     """3-D paths with the obstacles (thesis Figures 4-1 and 6-1)."""
@@ -380,6 +478,30 @@ def figure_separation(view: PlanView, colors: dict[str, str], seps: list[PairSep
     return fig
 
 
+def figure_sequence(view: PlanView, colors: dict[str, str]):
+    """The landing sequence as a time line: who lands when, each consecutive gap against what it needs."""
+    tl = view.timeline
+    n = max(len(tl.slots), 1)
+    column = _label_column(tl, True, style.FONT_SIZE - 1.5)
+    width = max(style.WIDTH_IN, 4.8 + column)
+    fig, ax = plt.subplots(figsize=(width, 1.7 + 0.45 * n))
+    h = fig.get_figheight()
+    left = (0.25 + max((len(_slot_label(s)) for s in tl.slots), default=4) * 0.08) / width
+    fig.subplots_adjust(left=left, right=1.0 - (column + 0.15) / width, bottom=0.55 / h, top=1.0 - 0.85 / h)
+    draw_sequence(ax, tl, colors)
+    how = [tl.strategy] if tl.strategy else []
+    how += [f"wake table {tl.wake_table}"] if tl.wake_table else []
+    how += [f"total delay {tl.total_delay:.1f} s"] if tl.total_delay is not None else []
+    short = sum(g.short for g in tl.gaps)
+    how += [f"{short} gap{'s' if short > 1 else ''} short"] if short else []
+    fig.suptitle(f"{view.name}: landing sequence" + (f" ({', '.join(how)})" if how else ""), y=1.0 - 0.08 / h,
+                 va="top")
+    handles = sequence_handles(tl)
+    fig.legend(handles=handles, loc="upper center", ncol=len(handles), bbox_to_anchor=(0.5, 1.0 - 0.32 / h),
+               handlelength=1.6, columnspacing=1.2)
+    return fig
+
+
 def _figure_2d(view: PlanView, colors: dict[str, str], size: tuple[float, float], draw: Callable) -> object:
     """A 2-D view with the legend at its right; the axes are placed before drawing (labels need them)."""
     fig, ax = plt.subplots(figsize=size)
@@ -419,14 +541,15 @@ def summary_rows(view: PlanView, seps: list[PairSeparation]) -> list[list[str]]:
 
 
 def figure_overview(view: PlanView, colors: dict[str, str], seps: list[PairSeparation]):
-    """One page: 3-D and plan views, altitude and separation against time, and the Table 6-1 analog."""
+    """One page: 3-D and plan views, altitude and separation against time, the Table 6-1 analog and, beside it,
+    the landing sequence as a time line."""
     n = len(view.aircraft)
-    table_h = 0.6 + 0.22 * n
+    table_h = 1.0 + 0.26 * n
     fig = plt.figure(figsize=(12.0, 9.0 + table_h))
     legend_rows = -(-(n + 4) // 12)
     top = 1.0 - (0.75 + 0.22 * legend_rows) / fig.get_figheight()
     gs = fig.add_gridspec(3, 2, height_ratios=[4.4, 3.2, table_h], hspace=0.35, wspace=0.18,
-                          left=0.05, right=0.98, top=top, bottom=0.02)
+                          left=0.05, right=0.98, top=top, bottom=0.45 / fig.get_figheight())
     ax3 = fig.add_subplot(gs[0, 0], projection="3d", computed_zorder=False)
     draw_3d(ax3, view, colors)
     ax3.set_title("3-D view")
@@ -439,17 +562,18 @@ def figure_overview(view: PlanView, colors: dict[str, str], seps: list[PairSepar
     draw_separation(axs, view, seps, colors)
     axs.set_title("Separation of every pair")
     axs.legend(loc="upper right", fontsize=style.FONT_SIZE - 2, ncol=2)
-    axt = fig.add_subplot(gs[2, :])
+    axt = fig.add_subplot(gs[2, 0])
     axt.axis("off")
     rows = summary_rows(view, seps)
     table = axt.table(cellText=rows, colLabels=["order", "aircraft", "gate passage (s)", "landing (s)",
                                                 "closest approach (nm, to)"], loc="upper center", cellLoc="center",
-                      colWidths=[0.08, 0.1, 0.16, 0.14, 0.22])
+                      colWidths=[0.1, 0.13, 0.23, 0.18, 0.36])
     table.auto_set_font_size(False)
-    table.set_fontsize(style.FONT_SIZE)
+    table.set_fontsize(style.FONT_SIZE - 0.5)
     for i, a in enumerate(view.aircraft, start=1):
         table[i, 1].get_text().set_color(colors[a.callsign])
         table[i, 1].get_text().set_fontweight("bold")
+    _overview_sequence(fig, gs[2, 1], view, colors)
     verdict = ("optimal, verified" if view.verified else "optimal, NOT verified") if view.optimized else (
         view.status.replace("_", " "))
     order = view.callsigns if n <= 8 else [*view.callsigns[:3], "…", view.callsigns[-1]]
@@ -458,6 +582,19 @@ def figure_overview(view: PlanView, colors: dict[str, str], seps: list[PairSepar
     _legend(fig, view, colors, loc="top")
     return fig
 
+
+def _overview_sequence(fig, cell, view: PlanView, colors: dict[str, str]) -> None:
+    """The overview's time-line panel: the landing sequence in ``cell``, its gap labels in a column at its right."""
+    tl = view.timeline
+    column = _label_column(tl, False, style.FONT_SIZE - 1.5)
+    cell_w = cell.get_position(fig).width * fig.get_figwidth()
+    sub = cell.subgridspec(1, 2, width_ratios=[max(cell_w - column - 0.1, 1.0), column + 0.1], wspace=0.0)
+    ax = fig.add_subplot(sub[0, 0])
+    draw_sequence(ax, tl, colors, pair_labels=False)
+    ax.set_xlabel("time (s)", labelpad=1)
+    key = ["| target, shaded: delay"] if any(s.target is not None for s in tl.slots) else []
+    key += [f"total {tl.total_delay:.1f} s"] if tl.total_delay is not None else []
+    ax.set_title("Landing sequence" + (f" ({'; '.join(key)})" if key else ""))
 
 def write_pngs(view: PlanView, out_dir: Path) -> list[Path]:
     """Every PNG of a plan into ``out_dir``; return the paths."""
@@ -471,6 +608,7 @@ def write_pngs(view: PlanView, out_dir: Path) -> list[Path]:
         ("plan_view", lambda: figure_plan(view, colors)),
         ("yz_view", lambda: figure_yz(view, colors)),
         ("separation", lambda: figure_separation(view, colors, seps)),
+        ("sequence", lambda: figure_sequence(view, colors)),
     ]
     if view.optimized:
         jobs += [

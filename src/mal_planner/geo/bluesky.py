@@ -41,16 +41,46 @@ waypoint every 1.9 s, 0.075 nm)."""
 
 def tas_to_cas_kt(tas_kt: float, altitude_ft: float) -> float:
     """True to calibrated airspeed (knots) in the ISA troposphere (compressible flow, as BlueSky's tas2cas)."""
-    h = ft_to_m(altitude_ft)
-    if h >= TROPOPAUSE_M:
-        raise ValueError(f"altitude {altitude_ft:.0f} ft is above the tropopause (the export's atmosphere ends there)")
-    temperature = ISA_T0 + ISA_LAPSE * h
-    pressure = ISA_P0 * (temperature / ISA_T0) ** (-ISA_G0 / (ISA_LAPSE * ISA_R))
-    density = pressure / (ISA_R * temperature)
+    _, pressure, density = _isa(ft_to_m(altitude_ft))
     tas = tas_kt * METRES_PER_NM / 3600.0
     impact = pressure * ((1.0 + density * tas * tas / (7.0 * pressure)) ** 3.5 - 1.0)
     cas = math.sqrt(7.0 * ISA_P0 / ISA_RHO0 * ((impact / ISA_P0 + 1.0) ** (2.0 / 7.0) - 1.0))
     return cas * 3600.0 / METRES_PER_NM
+
+
+def _isa(altitude_m: float) -> tuple[float, float, float]:
+    """ISA troposphere at a geometric altitude (m): temperature (K), pressure (Pa), density (kg/m^3)."""
+    if altitude_m >= TROPOPAUSE_M:
+        raise ValueError(f"altitude {m_to_ft(altitude_m):.0f} ft is above the tropopause (the ISA model here ends "
+                         "there)")
+    temperature = ISA_T0 + ISA_LAPSE * altitude_m
+    pressure = ISA_P0 * (temperature / ISA_T0) ** (-ISA_G0 / (ISA_LAPSE * ISA_R))
+    return temperature, pressure, pressure / (ISA_R * temperature)
+
+
+def cas_to_tas_kt(cas_kt: float, altitude_ft: float) -> float:
+    """Calibrated to true airspeed (knots) in the ISA troposphere: the inverse of :func:`tas_to_cas_kt`."""
+    _, pressure, density = _isa(ft_to_m(altitude_ft))
+    cas = cas_kt * METRES_PER_NM / 3600.0
+    impact = ISA_P0 * ((1.0 + ISA_RHO0 * cas * cas / (7.0 * ISA_P0)) ** 3.5 - 1.0)
+    tas = math.sqrt(7.0 * pressure / density * ((impact / pressure + 1.0) ** (2.0 / 7.0) - 1.0))
+    return tas * 3600.0 / METRES_PER_NM
+
+
+def mach_to_tas_kt(mach: float, altitude_ft: float) -> float:
+    """Mach number to true airspeed (knots) in the ISA troposphere (speed of sound sqrt(1.4 R T))."""
+    temperature, _, _ = _isa(ft_to_m(altitude_ft))
+    return mach * math.sqrt(1.4 * ISA_R * temperature) * 3600.0 / METRES_PER_NM
+
+
+def wind_command(frame: GeoFrame, wind: tuple[float, float]) -> str | None:
+    """BlueSky's ``WIND`` for a constant local wind (w_x, w_y) nm/s at the threshold (one point: BlueSky blows it
+    everywhere): from which true direction, kt; None if calm."""
+    speed = math.hypot(*wind)
+    if speed == 0.0:
+        return None
+    towards, _ = frame.direction_to_geodetic([0.0, 0.0, 0.0], math.atan2(wind[1], wind[0]), 0.0)
+    return f"WIND {frame.lat_deg:.8f} {frame.lon_deg:.8f} {(towards + 180.0) % 360.0:.4f} {nm_per_s_to_kt(speed):.4f}"
 
 
 def _clock(t: float) -> str:
@@ -116,6 +146,8 @@ def scn_lines(result, frame: GeoFrame | None = None, aircraft_type: str = "A320"
     lines = [f"# mal-planner plan of {scenario.name} ({scenario.source}); frame origin {frame.lat_deg:.8f} "
              f"{frame.lon_deg:.8f} at {frame.elevation_ft:.1f} ft, runway course {frame.course_deg} deg true"]
     lines += [at0 + c for c in detection_commands(scenario)]
+    wind = wind_command(frame, scenario.wind)
+    lines += [at0 + wind] if wind else []
     landing = result.landing_times()
     deletions = []
     for tr in result.trajectories():

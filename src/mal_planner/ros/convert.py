@@ -16,15 +16,20 @@ from __future__ import annotations
 
 import math
 from collections.abc import Sequence
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
-from mal_planner.units import PLANNER_FRAME, m_per_s_to_nm_per_s, m_to_nm, nm_per_s_to_m_per_s, nm_to_m
+from mal_planner.units import PLANNER_FRAME, ft_to_m, m_per_s_to_nm_per_s, m_to_nm, nm_per_s_to_m_per_s, nm_to_m
+
+if TYPE_CHECKING:
+    from mal_planner.geo.frame import GeoFrame
 
 __all__ = [
     "aircraft_state_to_planner",
     "euler_from_quaternion",
+    "frame_origin_fields",
+    "geodetic_path_fields",
     "msg_to_time",
     "path_msg",
     "path_to_planner",
@@ -177,6 +182,26 @@ def path_msg(
     banks = np.zeros(len(times)) if bank is None else np.asarray(bank, dtype=float)
     poses = [pose_from_state(types, t0_s + tk, xk, bk, frame) for tk, xk, bk in zip(times, xs, banks, strict=True)]
     return types.msg("nav_msgs/msg/Path")(header=_header(types, t0_s, frame), poses=poses)
+
+
+def frame_origin_fields(frame: GeoFrame | None) -> dict[str, Any]:
+    """``LandingPlan``'s geodetic fields: where the runway frame lies on the Earth (deg, m above the WGS84
+    ellipsoid, true course in deg); ``geodetic`` false and NaNs for a local frame."""
+    if frame is None:
+        return {"geodetic": False, "origin_latitude": math.nan, "origin_longitude": math.nan,
+                "origin_altitude": math.nan, "course": math.nan}
+    return {"geodetic": True, "origin_latitude": float(frame.lat_deg), "origin_longitude": float(frame.lon_deg),
+            "origin_altitude": float(ft_to_m(frame.elevation_ft)), "course": float(frame.course_deg)}
+
+
+def geodetic_path_fields(frame: GeoFrame | None, states: np.ndarray) -> dict[str, list[float]]:
+    """``AircraftPlan``'s ``latitude``/``longitude`` [deg] and ``altitude`` [m above the ellipsoid] of planner
+    states (n, 5) in the runway frame; empty lists for a local frame."""
+    if frame is None:
+        return {"latitude": [], "longitude": [], "altitude": []}
+    lat, lon, alt_ft = frame.to_geodetic(np.asarray(states, dtype=float)[:, :3])
+    return {"latitude": np.atleast_1d(lat).tolist(), "longitude": np.atleast_1d(lon).tolist(),
+            "altitude": ft_to_m(np.atleast_1d(alt_ft)).tolist()}
 
 
 def path_to_planner(msg: Any) -> tuple[np.ndarray, np.ndarray, np.ndarray]:

@@ -13,6 +13,8 @@ from typing import Any
 from mal_planner.landing import LandingOptions
 from mal_planner.pipeline import PlanOptions
 from mal_planner.ros.transport import load_params_file
+from mal_planner.sequencing import STRATEGIES
+from mal_planner.sequencing.wake import WAKE_TABLES
 
 Check = Callable[[Any], Any]
 
@@ -121,6 +123,11 @@ PARAMETERS: dict[str, tuple[Any, Check, str]] = {
     "nlp_tol": (1e-8, _float(positive=True), "IPOPT tolerance"),
     "max_nlp_iterations": (3000, _int(1), "IPOPT iteration limit"),
     "max_mesh_iterations": (8, _int(1), "mesh refinement iteration limit"),
+    "wake_table": ("scenario", _choice("scenario", *WAKE_TABLES), "wake-turbulence minima between landings: the "
+                   "scenario's separation.wake, or icao, recat-eu, none; categories from the scenario, else the "
+                   "radar's AircraftState.wake_category (unknown: the worst case)"),
+    "sequencing": ("scenario", _choice("scenario", *STRATEGIES), "who lands when: the scenario's sequencing.strategy,"
+                   " or fcfs (first come first served) or optimal (least total delay, MILP)"),
     "output_dt": (0.25, _float(lo=MIN_OUTPUT_DT_S, hi=MAX_OUTPUT_DT_S), "sample step of the published paths [s]"),
     "tracking_margins": (False, _bool, "plan with the closed loop's margins for flown plans: twice "
                          "deviation_threshold_m more separation, a tenth of the bank limit and half a path accuracy "
@@ -158,6 +165,8 @@ class NodeParams:
     nlp_tol: float
     max_nlp_iterations: int
     max_mesh_iterations: int
+    wake_table: str
+    sequencing: str
     output_dt: float
     tracking_margins: bool
     replan_period_s: float

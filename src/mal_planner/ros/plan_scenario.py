@@ -10,10 +10,11 @@ from typing import Any
 import numpy as np
 
 from mal_planner.dynamics import make_dynamics
-from mal_planner.initializer.schedule import vertical_escape_problem
+from mal_planner.initializer.schedule import landing_spacing, vertical_escape_problem
 from mal_planner.obstacles import Superquadric
 from mal_planner.ros.state_store import Track
 from mal_planner.scenario import Aircraft, Scenario
+from mal_planner.sequencing.wake import categories
 from mal_planner.units import m_to_nm, nm_per_s_to_kt
 
 DEFAULT_MODEL = "point_mass"
@@ -60,6 +61,15 @@ def apply_no_fly_zone(obstacles: tuple[Superquadric, ...], msg: Any) -> tuple[tu
     return out, f"{'replaced' if replaced else 'added'} no-fly zone {name!r} (p={zone.p})"
 
 
+def radar_wake(base: Scenario, category: str | None) -> str | None:
+    """An aircraft's wake category (the scenario's, else its radar track's) for the wake table in use: None (the
+    worst case in each role, see :func:`~mal_planner.sequencing.wake.wake_distance_nm`) when the table does not
+    know it (none given, or one of another table, e.g. a node parameter chose another table than the file's)."""
+    if not category or base.wake == "none":
+        return category or None
+    return category if category in categories(base.wake) else None
+
+
 @dataclass(frozen=True)
 class PlanInputs:
     """The scenario to plan (initial states at ``plan_start``) and the aircraft left out (with reasons)."""
@@ -97,17 +107,17 @@ def build_plan_scenario(base: Scenario, tracks: Mapping[str, Track], plan_start:
             known = base.aircraft_by_callsign(cs)
         except KeyError:
             dyn = make_dynamics(DEFAULT_MODEL, tr.speed, gravity=base.gravity, wind_x=base.wind[0], wind_y=base.wind[1])
-            aircraft.append(Aircraft(cs, state, dyn, default_limits, tr.wake, None))
+            aircraft.append(Aircraft(cs, state, dyn, default_limits, radar_wake(base, tr.wake), None))
             continue
         landing = None if known.landing_time is None else known.landing_time - landing_shift
-        candidate = Aircraft(cs, state, known.dynamics, known.limits, known.wake_category or tr.wake, landing)
+        candidate = Aircraft(cs, state, known.dynamics, known.limits, radar_wake(base, known.wake_category or tr.wake),
+                             landing)
         leaving = vertical_escape_problem(base, candidate)
         if leaving is not None:  # like an aircraft outside: no plan can keep it inside the airspace
             left_out[cs] = f"leaving the airspace ({leaving.split(': ', 1)[1]})"
             continue
         aircraft.append(candidate)
-    aircraft = _feasible_landing_times(aircraft, base.runway_state[:3], base.landing_spacing_s,
-                                       base.max_landing_spacing_s)
+    aircraft = _feasible_landing_times(base, aircraft)
     return PlanInputs(replace(base, aircraft=tuple(aircraft)), plan_start, left_out)
 
 
@@ -116,22 +126,24 @@ def _min_time(a: Aircraft, runway: np.ndarray) -> float:
     return MIN_TIME_FACTOR * float(a.dynamics.air_distance(runway - a.position)) / a.speed
 
 
-def _feasible_landing_times(aircraft: list[Aircraft], runway: np.ndarray, spacing: float,
-                            max_spacing: float) -> list[Aircraft]:
+def _feasible_landing_times(base: Scenario, aircraft: list[Aircraft]) -> list[Aircraft]:
     """Keep the fixed landing times of the known aircraft; aircraft without one (not in the scenario) land
-    after them, spaced. Only if that fails, or a fixed time cannot be met, the sequencer decides all."""
-    fixed = [a.landing_time for a in aircraft if a.landing_time is not None]
+    after them, each its pair's landing spacing (wake included) behind the one before. Only if that fails, or a
+    fixed time cannot be met, the sequencer decides all."""
+    runway = base.runway_state[:3]
+    fixed = [a for a in aircraft if a.landing_time is not None]
     if not fixed:
         return aircraft
     if not all(a.landing_time is None or a.landing_time >= _min_time(a, runway) for a in aircraft):
         return [replace(a, landing_time=None) for a in aircraft]
     out = list(aircraft)
-    last = max(fixed)
+    leader = max(fixed, key=lambda a: a.landing_time)  # type: ignore[arg-type, return-value]
     for i in sorted((i for i, a in enumerate(aircraft) if a.landing_time is None),
                     key=lambda i: _min_time(aircraft[i], runway)):
+        spacing = landing_spacing(base, leader, aircraft[i])
+        last = float(leader.landing_time)  # type: ignore[arg-type]
         t = max(last + spacing, _min_time(aircraft[i], runway) + UNKNOWN_MARGIN_S)
-        if t - last > max_spacing:  # cannot be slotted in after the others: the sequencer decides all
+        if t - last > max(base.max_landing_spacing_s, spacing):  # cannot be slotted in: the sequencer decides all
             return [replace(a, landing_time=None) for a in aircraft]
-        out[i] = replace(aircraft[i], landing_time=t)
-        last = t
+        out[i] = leader = replace(aircraft[i], landing_time=t)
     return out

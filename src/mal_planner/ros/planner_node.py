@@ -29,7 +29,15 @@ import numpy as np
 
 from mal_planner.dynamics import bank_angle
 from mal_planner.pipeline import Planner, PlanOptions, PlanResult
-from mal_planner.ros.convert import aircraft_state_to_planner, byte_field, path_msg, time_to_msg, wind_to_planner
+from mal_planner.ros.convert import (
+    aircraft_state_to_planner,
+    byte_field,
+    frame_origin_fields,
+    geodetic_path_fields,
+    path_msg,
+    time_to_msg,
+    wind_to_planner,
+)
 from mal_planner.ros.markers import marker_array
 from mal_planner.ros.node_params import NodeParams, declare_parameters, describe, read_params_file, update_params
 from mal_planner.ros.plan_scenario import NoFlyZoneError, PlanInputs, apply_no_fly_zone, build_plan_scenario
@@ -434,6 +442,10 @@ class PlannerNode:
             base = replace(self.scenario, obstacles=self.obstacles)
             if self.wind != base.wind:
                 base = base.with_wind(self.wind)
+        if self.params.wake_table != "scenario":
+            base = replace(base, wake=self.params.wake_table)
+        if self.params.sequencing != "scenario":
+            base = replace(base, sequencing=replace(base.sequencing, strategy=self.params.sequencing))
         inputs = build_plan_scenario(base, tracks, plan_start, shift)
         for cs, why in inputs.left_out.items():
             log.warning("aircraft %s left out of the plan: %s", cs, why)
@@ -546,22 +558,32 @@ class PlannerNode:
     # -- messages --------------------------------------------------------------------------------------
     def _landing_plan_msg(self, result: PlanResult | None, plan_start: float, callsigns: list[str]) -> Any:
         T = self.types
+        frame = self.scenario.geo_frame
         entries = []
         if result is None:
             entries = [T.msg("mal_msgs/msg/AircraftPlan")(callsign=cs, order=k, gate_time=math.nan,
-                                                          landing_time=math.nan, status=FAILED, verified=False)
+                                                          landing_time=math.nan, status=FAILED, verified=False,
+                                                          target_time=math.nan, delay=math.nan,
+                                                          **geodetic_path_fields(None, np.zeros((0, 5))))
                        for k, cs in enumerate(callsigns, 1)]
         else:
             land, gates = result.landing_times(), result.gate_times()
             status = OPTIMAL if result.optimized else INITIAL_GUESS
+            schedule = getattr(result.initial, "schedule", None)
+            targets = {} if schedule is None else schedule.target
+            samples = {tr.callsign: _dedupe(tr)[1] for tr in result.trajectories()}
             for k, cs in enumerate(result.order, 1):
-                gate = gates.get(cs)
+                gate, target = gates.get(cs), targets.get(cs)
+                target_time = math.nan if target is None else float(target)
                 entries.append(T.msg("mal_msgs/msg/AircraftPlan")(
                     callsign=cs, order=k, gate_time=math.nan if gate is None else float(gate),
                     landing_time=float(land[cs]), status=status,
-                    verified=result.optimized and _aircraft_verified(result, cs)))
+                    verified=result.optimized and _aircraft_verified(result, cs),
+                    wake_category=result.scenario.aircraft_by_callsign(cs).wake_category or "",
+                    target_time=target_time, delay=float(land[cs]) - target_time,
+                    **geodetic_path_fields(frame, samples.get(cs, np.zeros((0, 5))))))
         header = T.msg("std_msgs/msg/Header")(stamp=time_to_msg(T, plan_start), frame_id=self.params.frame_id)
-        return T.msg("mal_msgs/msg/LandingPlan")(header=header, aircraft=entries)
+        return T.msg("mal_msgs/msg/LandingPlan")(header=header, aircraft=entries, **frame_origin_fields(frame))
 
     def _path_msgs(self, result: PlanResult, plan_start: float) -> dict[str, Any]:
         out = {}

@@ -62,14 +62,19 @@ def categories(table: str) -> tuple[str, ...]:
 
 
 def wake_distance_nm(table: str, leader: str | None, follower: str | None, radar_nm: float) -> float:
-    """The distance the follower must be behind the leader when the leader lands (nm), at least ``radar_nm``."""
+    """The distance the follower must be behind the leader when the leader lands (nm), at least ``radar_nm``.
+
+    An unknown category (None: e.g. a radar track that carries none) is the worst case in its role: the
+    heaviest leader, the lightest follower. A category the table does not know is an error.
+    """
     if table == "none":
         return radar_nm
     known, distances = TABLES[table]
     for role, category in (("leader", leader), ("follower", follower)):
-        if category not in known:
+        if category is not None and category not in known:
             raise ValueError(f"wake table {table}: {role} category {category!r} is not one of {', '.join(known)}")
-    return max(radar_nm, distances.get((leader, follower), 0.0))  # type: ignore[arg-type]
+    return max([radar_nm] + [nm for (lead, follow), nm in distances.items()
+                             if leader in (None, lead) and follower in (None, follow)])
 
 
 def wake_spacing_s(table: str, leader: str | None, follower: str | None, follower_speed_nm_s: float,
