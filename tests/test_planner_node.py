@@ -186,11 +186,19 @@ settle(1.0)
 out["diag_failed"] = [byte_value(diags[-1].status[0].level), diags[-1].status[0].message]
 out["diag_failed_values"] = {kv.key: kv.value for kv in diags[-1].status[0].values}
 out["stamp_after_fail"] = msg_to_time(plans[-1])
+out["kept"] = [plans[-1].kept_failure, msg_to_time(plans[-1].kept_since), len(plans[-1].aircraft)]
 out["set_back"] = set_("max_nlp_iterations", 3000)
 res = trigger.call(Trigger.Request(), timeout_sec=150)
 out["recovered"] = [res.success, res.message]
 settle(1.0)
 out["diag_recovered"] = byte_value(diags[-1].status[0].level)
+out["fresh"] = [plans[-1].kept_failure, msg_to_time(plans[-1].kept_since), len(plans[-1].aircraft)]
+# a kept plan expires: withdrawn kept_plan_expiry_s after the first failed replan
+set_("kept_plan_expiry_s", 1.0)
+set_("max_nlp_iterations", 1)
+res = trigger.call(Trigger.Request(), timeout_sec=150)
+settle(2.5)
+out["expired"] = [res.success, len(plans[-1].aircraft), diags[-1].status[0].message]
 print("PARAMS " + json.dumps(out), flush=True)
 """
 
@@ -342,6 +350,11 @@ def test_replay_to_paths_services_and_latched(backend_snippet, snippet, tmp_path
         assert params["set_back"] == [True, ""]
         assert params["recovered"][0] is True, params
         assert params["diag_recovered"] in (0, 1)
+        # landing_plan says that its plan is kept (why, since when) until a new plan replaces it
+        assert "keeping the last plan" in params["kept"][0] and params["kept"][1] > params["stamp_before"]
+        assert params["kept"][2] > 0 and params["fresh"][:2] == ["", 0.0] and params["fresh"][2] > 0
+        assert params["expired"][0] is False and params["expired"][1] == 0, params["expired"]
+        assert "kept plan expired" in params["expired"][2]
         assert planner.proc.poll() is None
         if os.environ.get("MAL_TEST_VERBOSE"):
             while not planner.lines.empty():

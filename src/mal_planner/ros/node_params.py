@@ -144,6 +144,8 @@ PARAMETERS: dict[str, tuple[Any, Check, str]] = {
     "output_dir": ("", _str, "write plan.json, report.md and figures here after each plan ('' = off)"),
     "figures": ("png", _figures, "figures rendered into output_dir in a background process after each plan: "
                 "none, png, html (interactive plan.html) or all (true/false: png/none)"),
+    "kept_plan_expiry_s": (120.0, _float(), "withdraw a plan kept after failed replans this long after the first "
+                           "failure (node clock) [s]; two minutes is 8 nm at 250 kt; 0 = never"),
     "service_timeout_s": (600.0, _float(positive=True), "longest a service call waits for its plan [s]"),
     "planning_time_limit_s": (60.0, _float(), "wall-clock limit of one plan [s]; when it runs out the best result "
                               "so far is kept (a failure is reported, the last plan stays); 0 = no limit"),
@@ -179,6 +181,7 @@ class NodeParams:
     frame_id: str
     output_dir: str
     figures: str
+    kept_plan_expiry_s: float
     service_timeout_s: float
     planning_time_limit_s: float
 

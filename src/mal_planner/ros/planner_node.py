@@ -159,6 +159,7 @@ class PlannerNode:
         self._plan_status: Any = None
         self._pub_lock = threading.RLock()  # the worker publishes plans, the executor withdraws lost aircraft
         self._plan_msg: Any = None  # the last published LandingPlan
+        self._kept_at: float | None = None  # node clock at the first failed replan since the published plan
         self._setup_ros()
         self.node.forward_logs(logging.getLogger("mal_planner"))  # the planner's log lines on /rosout
         self.node.add_on_set_parameters_callback(self._on_set_parameters)
@@ -373,6 +374,7 @@ class PlannerNode:
                 self._radar["lost"] += 1
             if gone:
                 self._withdraw(gone, f"track lost (not seen for {p.track_timeout_s:g} s)")
+        self._expire_kept_plan()
         if (not self._initial_requested and self._first_rx is not None and now - self._first_rx >= p.settle_time_s
                 and len(self.tracks) >= p.min_aircraft):
             self._initial_requested = True
@@ -513,6 +515,7 @@ class PlannerNode:
                 reason += f"; keeping the last plan ({age:.1f} s old)"
                 extra |= {"kept_plan_stamp": f"{cur.plan_start:.3f}", "kept_plan_age_s": f"{age:.1f}",
                           "kept_plan_aircraft": ",".join(sorted(cur.trajectories))}
+                self._mark_kept(reason, inputs.plan_start)
             else:
                 reason += "; no plan yet"
             log.error("%s", reason)
@@ -611,6 +614,7 @@ class PlannerNode:
         considered = frozenset(a.callsign for a in inputs.scenario.aircraft) | frozenset(inputs.left_out)
         self._plans += 1
         self._last_result = result
+        self._kept_at = None
         self._current = CurrentPlan(plan_start, trajectories, {cs: plan_start + land[cs] for cs in trajectories},
                                     considered - lost, job.explicit is None)
         self._plan_msg = plan_msg
@@ -627,6 +631,28 @@ class PlannerNode:
         self._publish_markers(list(trajectories.values()), plan_start)
         self._publish_diagnostics(result, self._status_text(result))
         return plan_msg, [paths[cs] for cs in result.order]
+
+    def _mark_kept(self, failure: str, radar_time: float) -> None:
+        """The published plan is kept after a failed replan: say so on landing_plan (the failure, since when)."""
+        with self._pub_lock:
+            if self._plan_msg is None:
+                return
+            if self._kept_at is None:
+                self._kept_at = self._clock()
+                self._plan_msg.kept_since = time_to_msg(self.types, radar_time)
+            self._plan_msg.kept_failure = failure
+            self.plan_pub.publish(self._plan_msg)
+
+    def _expire_kept_plan(self) -> None:
+        """Withdraw a plan kept longer than ``kept_plan_expiry_s`` (node clock) after its first failed replan."""
+        expiry = self.params.kept_plan_expiry_s
+        if self._kept_at is None or expiry <= 0 or self._clock() - self._kept_at < expiry:
+            return
+        self._kept_at = None
+        self._withdraw(sorted(self._published_paths), f"kept plan expired: replans have failed for {expiry:g} s "
+                                                      "(kept_plan_expiry_s)")
+        with self._pub_lock:
+            self._current = None  # nothing is kept any more: the next plan is a first plan
 
     def _publish_empty_path(self, callsign: str, stamp: float) -> None:
         """An empty nav_msgs/Path on the aircraft's topic: its plan is withdrawn (latched for late joiners)."""
