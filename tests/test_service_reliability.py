@@ -203,6 +203,26 @@ def test_radar_intake_gates_and_burst(backend_snippet, snippet, tmp_path: Path) 
         assert planner.proc.poll() is None
 
 
+def test_a_second_planner_under_the_same_name_refuses_to_start(backend_snippet, tmp_path: Path) -> None:  # noqa: F811
+    """Two planners on one domain and namespace would both publish plans: the second exits 2 naming the first;
+    another namespace, or --allow-duplicate, starts."""
+    params = tmp_path / "planner.params.yaml"
+    params.write_text(coarse_params("    figures: false\n"), encoding="utf-8")
+    first = start_planner(backend_snippet, params)
+    with dump_on_failure(first=first):
+        wait_for(first, "planner ready", 30)
+        second = start_planner(backend_snippet, params)
+        with dump_on_failure(second=second):
+            line = wait_for(second, "another planner answers as /planner on ROS_DOMAIN_ID", 60)
+            assert second.proc.wait(30) == 2 and "--allow-duplicate" in line
+        elsewhere = start_planner(backend_snippet, params, "--namespace", "tower2")
+        forced = start_planner(backend_snippet, params, "--allow-duplicate")
+        with dump_on_failure(elsewhere=elsewhere, forced=forced):
+            wait_for(elsewhere, "planner ready", 60)
+            wait_for(forced, "planner ready", 60)
+        assert first.proc.poll() is None
+
+
 @pytest.mark.parametrize(("name", "value", "why"), [
     ("degree", 1000, "must be <= 16"), ("segments", 100000, "must be <= 64"), ("output_dt", 1e-9, "must be >= 0.01"),
     ("settle_time_s", 1e12, "must be <= 600"), ("frame_id", "", "expected a frame name"),

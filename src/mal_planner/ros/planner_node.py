@@ -850,7 +850,38 @@ def parse_args(argv: list[str] | None = None) -> argparse.Namespace:
     p.add_argument("--namespace", default="", help="node namespace")
     p.add_argument("--backend", default="auto", choices=("auto", "rclpy", "cyclone"), help="ROS backend")
     p.add_argument("--log-level", default="INFO", help="Python log level (default INFO)")
+    p.add_argument("--allow-duplicate", action="store_true",
+                   help="start even when another planner answers under the same name (both will publish plans)")
     return p.parse_args(argv)
+
+
+DUPLICATE_PROBE_S = 1.0
+"""How long a starting planner looks for another under its name: discovery on one host takes tens of ms; across
+a network a planner discovered later than this is not seen."""
+
+
+def other_planner(namespace: str, backend: str) -> str | None:
+    """The full name of another planner that answers under ours (``<namespace>/planner``), or None.
+
+    Its parameter service must answer, not only be discovered: a planner killed moments ago stays in the DDS
+    graph until its lease expires (10 s), and a respawned planner must not refuse to start because of it."""
+    from mal_planner.ros.transport._common import normalize_namespace
+
+    full = f"{normalize_namespace(namespace).rstrip('/')}/{NODE_NAME}"
+    probe = create_node(f"{NODE_NAME}_probe_{os.getpid()}", namespace, backend=backend,
+                        start_parameter_services=False)
+    try:
+        client = probe.create_client("rcl_interfaces/srv/GetParameters", f"{full}/get_parameters")
+        if not client.wait_for_service(DUPLICATE_PROBE_S):
+            return None
+        request = probe.types.srv("rcl_interfaces/srv/GetParameters").Request(names=["frame_id"])
+        try:
+            client.call(request, timeout_sec=2.0 * DUPLICATE_PROBE_S)
+        except TimeoutError:
+            return None
+        return full
+    finally:
+        probe.shutdown()
 
 
 def setup_logging(level: str = "INFO") -> None:
@@ -860,7 +891,7 @@ def setup_logging(level: str = "INFO") -> None:
 
 def main(argv: list[str] | None = None) -> int:
     """Run the node until SIGINT/SIGTERM (then it ends by that signal, after a clean shutdown: exit -2/-15 as
-    a supervisor sees it); 2 when the scenario cannot be loaded."""
+    a supervisor sees it); 2 when the scenario cannot be loaded or another planner answers under its name."""
     args = parse_args(argv)
     setup_logging(args.log_level)
     scenario_path = args.scenario or _default_path("scenarios/thesis.yaml") or "scenarios/thesis.yaml"
@@ -872,6 +903,11 @@ def main(argv: list[str] | None = None) -> int:
         return 2
     if not all(CALLSIGN_RE.match(a.callsign) for a in scenario.aircraft):
         log.error("scenario %s: callsigns must be ROS name-safe", scenario_path)
+        return 2
+    if not args.allow_duplicate and (other := other_planner(args.namespace, args.backend)) is not None:
+        log.error("another planner answers as %s on ROS_DOMAIN_ID %s: two would both publish plans; stop it, use "
+                  "another --namespace or ROS_DOMAIN_ID, or pass --allow-duplicate", other,
+                  os.environ.get("ROS_DOMAIN_ID", "0"))
         return 2
     planner = PlannerNode(scenario, params_file=params_file, output_dir=args.out, namespace=args.namespace,
                           backend=args.backend)

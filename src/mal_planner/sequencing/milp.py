@@ -1,28 +1,34 @@
 """Optimal sequencing: the aircraft landing problem as a mixed-integer programme on HiGHS (SciPy's milp).
 
 Beasley's formulation (Beasley et al., Transportation Science 34(2), 2000, section 2), tightened so that
-HiGHS proves the published optima in seconds rather than a minute:
+HiGHS proves the published optima in about a second rather than a minute:
 
 * **Pair fixing from the windows.** If j cannot land before i (E_j + S_ji > L_i), the pair needs no binary:
   x_j >= x_i + S_ij is a plain linear constraint, and none at all when L_i + S_ij <= E_j (the windows keep it).
 * **Tight big-Ms.** For an undecided pair with d_ij = 1 when i lands first,
   x_j >= x_i + S_ij - (L_i + S_ij - E_j)(1 - d_ij): the smallest M that leaves the constraint slack when j
   lands first (x_i <= L_i, x_j >= E_j).
+* **Windows and pairs fixed by cost** (:mod:`.bounds`): a heuristic schedule bounds the optimum from above,
+  the LP relaxation from below; each variable's reduced cost then bounds how far it can move in any schedule
+  that is no worse, which narrows the windows, fixes pairs and shrinks the big-Ms, round after round.
+* **Independent blocks.** When the narrowed windows split the aircraft into groups that no separation
+  links, each group is its own, smaller MILP.
 * **Constrained position shifting** (``max_shift`` = k): i's position 1 + #(aircraft before i) stays within k
   of its first-come position; two aircraft 2k or more places apart keep their first-come order (fixed pair).
 
 The objective is the weighted earliness and tardiness (x_i = T_i - a_i + b_i) or the last landing time.
-A time limit returns the best schedule found and HiGHS's proven gap.
+A time limit returns the best schedule found and the proven gap.
 """
 
 from __future__ import annotations
 
 import dataclasses
 import time
+from dataclasses import dataclass
 
 import numpy as np
 from scipy.optimize import Bounds, LinearConstraint, milp
-from scipy.sparse import coo_array
+from scipy.sparse import coo_array, csr_array
 
 from mal_planner.sequencing.problem import (
     SequenceResult,
@@ -30,6 +36,8 @@ from mal_planner.sequencing.problem import (
     SequencingOptions,
     SequencingProblem,
 )
+
+Pair = tuple[int, int]
 
 
 class _Rows:
@@ -51,9 +59,36 @@ class _Rows:
         self.lb.append(lb)
         self.ub.append(ub)
 
-    def constraint(self, n_vars: int) -> LinearConstraint:
-        a = coo_array((self.v, (self.r, self.c)), shape=(len(self.lb), n_vars)).tocsr()
-        return LinearConstraint(a, np.array(self.lb), np.array(self.ub))
+    def matrix(self, n_vars: int) -> csr_array:
+        return coo_array((self.v, (self.r, self.c)), shape=(len(self.lb), n_vars)).tocsr()
+
+
+@dataclass(frozen=True)
+class CostCut:
+    """The aircraft ``members`` together cost at least ``bound``: their own MILP's bound, a relaxation."""
+
+    members: tuple[int, ...]
+    bound: float
+
+
+@dataclass(frozen=True)
+class Model:
+    """One MILP: variables x (n), earliness a (n), tardiness b (n), a binary per free pair, [makespan z]."""
+
+    n: int
+    free: list[Pair]
+    c: np.ndarray
+    integrality: np.ndarray
+    lo: np.ndarray
+    hi: np.ndarray
+    a: csr_array
+    row_lo: np.ndarray
+    row_hi: np.ndarray
+
+    @property
+    def d0(self) -> int:
+        """Column of the first pair binary (d = 1: the pair's first aircraft lands first)."""
+        return 3 * self.n
 
 
 def interchangeable(problem: SequencingProblem, i: int, j: int) -> bool:
@@ -72,16 +107,23 @@ def dominates(problem: SequencingProblem, i: int, j: int) -> bool:
                 and problem.latest[i] <= problem.latest[j])
 
 
-def pair_relations(problem: SequencingProblem, latest: np.ndarray, max_shift: int | None
-                   ) -> tuple[list[tuple[int, int]], list[tuple[int, int]]]:
-    """(fixed, free): ordered pairs (i, j) where i must land before j, and unordered pairs (i < j) left open."""
-    E, S = problem.earliest, problem.separation
+def pair_relations(problem: SequencingProblem, latest: np.ndarray, max_shift: int | None,
+                   earliest: np.ndarray | None = None, forced: frozenset[Pair] = frozenset()
+                   ) -> tuple[list[Pair], list[Pair]]:
+    """(fixed, free): ordered pairs (i, j) where i must land before j, and unordered pairs (i < j) left open.
+
+    ``earliest``/``latest`` are the (possibly narrowed) windows; ``forced`` holds orders (i, j) already
+    proven for some optimal schedule. Dominance always compares the problem's own windows: it is a property of
+    the problem, not of the narrowed windows.
+    """
+    E = problem.earliest if earliest is None else earliest
+    S = problem.separation
     position = {i: p for p, i in enumerate(problem.first_come_order())}
     fixed, free = [], []
     for i in range(problem.n):
         for j in range(i + 1, problem.n):
-            i_first = E[i] + S[i, j] <= latest[j]
-            j_first = E[j] + S[j, i] <= latest[i]
+            i_first = E[i] + S[i, j] <= latest[j] and (j, i) not in forced
+            j_first = E[j] + S[j, i] <= latest[i] and (i, j) not in forced
             if max_shift is not None:
                 gap = position[j] - position[i]
                 i_first = i_first and gap > -2 * max_shift
@@ -100,14 +142,19 @@ def pair_relations(problem: SequencingProblem, latest: np.ndarray, max_shift: in
     return fixed, free
 
 
-def solve_milp(problem: SequencingProblem, options: SequencingOptions) -> SequenceResult:
-    """The optimal schedule (or the best within the time limit); raises SequencingInfeasible."""
-    t0 = time.perf_counter()
-    n = problem.n
-    E, T, S = problem.earliest, problem.target, problem.separation
-    L = problem.bounded_latest()
-    fixed, free = pair_relations(problem, L, options.max_shift)
-    # Variables: x (n), earliness a (n), tardiness b (n), one binary per free pair, [makespan z].
+def build_model(problem: SequencingProblem, earliest: np.ndarray, latest: np.ndarray, options: SequencingOptions,
+                fixed: list[Pair], free: list[Pair], members: list[int] | None = None,
+                cuts: tuple[CostCut, ...] = ()) -> Model:
+    """The MILP of the aircraft ``members`` (default all) within the windows [earliest, latest] (finite, indexed
+    like the problem), with the pair relations of :func:`pair_relations` (pairs outside ``members`` are ignored).
+    Variables are indexed by position in ``members``."""
+    members = list(range(problem.n)) if members is None else members
+    local = {g: k for k, g in enumerate(members)}
+    n = len(members)
+    E, L = earliest[members], latest[members]
+    T, S = problem.target[members], problem.separation[np.ix_(members, members)]
+    fixed = [(local[i], local[j]) for i, j in fixed if i in local and j in local]
+    free = [(local[i], local[j]) for i, j in free if i in local and j in local]
     X, A, B, D = 0, n, 2 * n, 3 * n
     makespan = options.objective == "makespan"
     n_vars = 3 * n + len(free) + (1 if makespan else 0)
@@ -115,8 +162,8 @@ def solve_milp(problem: SequencingProblem, options: SequencingOptions) -> Sequen
     lo = np.zeros(n_vars)
     hi = np.full(n_vars, np.inf)
     lo[X:X + n], hi[X:X + n] = E, L
-    hi[A:A + n] = np.maximum(T - E, 0.0)
-    hi[B:B + n] = np.maximum(L - T, 0.0)
+    lo[A:A + n], hi[A:A + n] = np.maximum(T - L, 0.0), np.maximum(T - E, 0.0)
+    lo[B:B + n], hi[B:B + n] = np.maximum(E - T, 0.0), np.maximum(L - T, 0.0)
     hi[D:D + len(free)] = 1.0
     integrality = np.zeros(n_vars)
     integrality[D:D + len(free)] = 1
@@ -125,8 +172,8 @@ def solve_milp(problem: SequencingProblem, options: SequencingOptions) -> Sequen
         lo[Z], hi[Z] = float(np.min(E)), float(np.max(L))
         c[Z] = 1.0
     else:
-        c[A:A + n] = problem.cost_early
-        c[B:B + n] = problem.cost_late
+        c[A:A + n] = problem.cost_early[members]
+        c[B:B + n] = problem.cost_late[members]
     rows = _Rows()
     for i in range(n):
         rows.add([(X + i, 1.0), (A + i, 1.0), (B + i, -1.0)], T[i], T[i])  # x = T - a + b
@@ -148,35 +195,75 @@ def solve_milp(problem: SequencingProblem, options: SequencingOptions) -> Sequen
             rows.add([(A + j, 1.0), (B + i, 1.0), (D + k, need_ji)], need_ji)
     if options.max_shift is not None:
         _position_shift_rows(problem, rows, fixed, free, D, options.max_shift)
-    res = milp(c, integrality=integrality, bounds=Bounds(lo, hi), constraints=[rows.constraint(n_vars)],
-               options={"time_limit": options.time_limit_s, "mip_rel_gap": options.mip_rel_gap, "disp": False})
-    elapsed = time.perf_counter() - t0
-    if res.x is None:
-        if res.status == 1:  # time limit without any schedule: first come, first served if it fits the windows
-            from mal_planner.sequencing.fcfs import first_come_first_served
+    if not makespan:
+        for cut in cuts:
+            if all(i in local for i in cut.members):
+                rows.add([(A + local[i], problem.cost_early[i]) for i in cut.members]
+                         + [(B + local[i], problem.cost_late[i]) for i in cut.members], cut.bound)
+    return Model(n, free, c, integrality, lo, hi, rows.matrix(n_vars), np.array(rows.lb), np.array(rows.ub))
 
-            try:
-                fallback = first_come_first_served(problem)
-            except SequencingInfeasible:
-                raise TimeoutError(f"no landing sequence found within the time limit of {options.time_limit_s:g} s"
-                                   ) from None
-            return dataclasses.replace(fallback, value=problem.objective_value(fallback.times, options.objective),
-                                       objective=options.objective, status="feasible",
-                                       solve_time_s=time.perf_counter() - t0)
-        raise SequencingInfeasible(f"no landing sequence meets every time window ({res.message})")
-    x = np.asarray(res.x[X:X + n], float)
-    order = tuple(sorted(range(n), key=lambda i: (x[i], E[i], problem.names[i])))
-    value = problem.objective_value(x, options.objective)
-    optimal = res.status == 0
+
+@dataclass(frozen=True)
+class MilpOutcome:
+    """What HiGHS returned: times (None if no schedule), whether proven optimal, its dual bound."""
+
+    times: np.ndarray | None
+    optimal: bool
+    bound: float | None
+    infeasible: bool = False
+
+
+def run_milp(model: Model, time_limit_s: float, mip_rel_gap: float) -> MilpOutcome:
+    res = milp(model.c, integrality=model.integrality, bounds=Bounds(model.lo, model.hi),
+               constraints=[LinearConstraint(model.a, model.row_lo, model.row_hi)],
+               options={"time_limit": max(time_limit_s, 1e-3), "mip_rel_gap": mip_rel_gap, "disp": False})
     bound = getattr(res, "mip_dual_bound", None)
-    gap = 0.0 if optimal and (res.mip_gap is None or res.mip_gap <= options.mip_rel_gap) else res.mip_gap
+    bound = None if bound is None or not np.isfinite(bound) else float(bound)
+    times = None if res.x is None else np.asarray(res.x[:model.n], float)
+    return MilpOutcome(times, res.status == 0 and times is not None, bound, res.status == 2)
+
+
+def solve_milp(problem: SequencingProblem, options: SequencingOptions) -> SequenceResult:
+    """The optimal schedule (or the best within the time limit); raises SequencingInfeasible."""
+    from mal_planner.sequencing.bounds import solve_narrowed
+
+    t0 = time.perf_counter()
+    times, optimal, bound = solve_narrowed(problem, options, t0 + options.time_limit_s)
+    if times is None:
+        return _fallback(problem, options, t0)
+    x = np.asarray(times, float)
+    order = tuple(sorted(range(problem.n), key=lambda i: (x[i], problem.earliest[i], problem.names[i])))
+    value = problem.objective_value(x, options.objective)
+    gap = 0.0 if optimal else _gap(value, bound)
     return SequenceResult(order, x, value, problem.cost(x), "optimal", options.objective,
-                          "optimal" if optimal else "feasible", None if gap is None else float(gap),
-                          None if bound is None else float(bound), elapsed)
+                          "optimal" if optimal else "feasible", gap, value if optimal else bound,
+                          time.perf_counter() - t0)
 
 
-def _position_shift_rows(problem: SequencingProblem, rows: _Rows, fixed: list[tuple[int, int]],
-                         free: list[tuple[int, int]], D: int, k: int) -> None:
+def _gap(value: float, bound: float | None) -> float | None:
+    """HiGHS's relative gap (value - bound) / |value| (0 when both are 0)."""
+    if bound is None:
+        return None
+    if value == 0.0:
+        return 0.0 if bound >= 0.0 else 1.0
+    return max(0.0, (value - bound) / abs(value))
+
+
+def _fallback(problem: SequencingProblem, options: SequencingOptions, t0: float) -> SequenceResult:
+    """Time limit without any schedule: first come, first served if it fits the windows."""
+    from mal_planner.sequencing.fcfs import first_come_first_served
+
+    try:
+        fallback = first_come_first_served(problem)
+    except SequencingInfeasible:
+        raise TimeoutError(f"no landing sequence found within the time limit of {options.time_limit_s:g} s"
+                           ) from None
+    return dataclasses.replace(fallback, value=problem.objective_value(fallback.times, options.objective),
+                               objective=options.objective, status="feasible", solve_time_s=time.perf_counter() - t0)
+
+
+def _position_shift_rows(problem: SequencingProblem, rows: _Rows, fixed: list[Pair],
+                         free: list[Pair], D: int, k: int) -> None:
     """|position_i - first-come position_i| <= k, position_i = #(aircraft before i) (0-based)."""
     position = {i: p for p, i in enumerate(problem.first_come_order())}
     before_fixed = np.zeros(problem.n)
@@ -191,4 +278,3 @@ def _position_shift_rows(problem: SequencingProblem, rows: _Rows, fixed: list[tu
     for i in range(problem.n):
         p = position[i]
         rows.add(terms[i], p - k - constant[i], p + k - constant[i])
-
