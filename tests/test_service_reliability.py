@@ -203,6 +203,51 @@ def test_radar_intake_gates_and_burst(backend_snippet, snippet, tmp_path: Path) 
         assert planner.proc.poll() is None
 
 
+# Listener: the first landing_plan as one JSON line (callsign -> status, verified, reason).
+PLAN_ENTRIES = """
+import json
+from mal_planner.ros.transport import QOS_LATCHED, create_node
+node = create_node("plan_entries")
+plans = []
+node.create_subscription("mal_msgs/msg/LandingPlan", "landing_plan", plans.append, QOS_LATCHED)
+print("listening", flush=True)
+while not plans:
+    node.spin_once(0.1)
+print("PLAN " + json.dumps({a.callsign: [a.status, a.verified, a.reason] for a in plans[0].aircraft}), flush=True)
+"""
+
+
+def test_a_pair_too_close_at_the_start_leaves_the_others_planned(backend_snippet, snippet, tmp_path: Path  # noqa: F811
+                                                                ) -> None:
+    """A4 starts 0.1 nm behind A1 (separation 0.25 nm): no plan can separate them, so both are reported with the
+    reason on landing_plan, and A2 and A3 are planned, verified and published."""
+    import yaml
+
+    data = yaml.safe_load(SCENARIO.read_text(encoding="utf-8"))
+    a1 = data["aircraft"][0]
+    data["aircraft"].append({**a1, "callsign": "A4", "position": [a1["position"][0], a1["position"][1] - 0.1,
+                                                                   a1["position"][2]], "landing_time": 215.0})
+    scenario = tmp_path / "close_pair.yaml"
+    scenario.write_text(yaml.safe_dump(data, sort_keys=False), encoding="utf-8")
+    params = tmp_path / "planner.params.yaml"
+    full = coarse_params("    deviation_threshold_m: 0.0\n    figures: false\n    min_aircraft: 4\n").replace(
+        "verify: false", "verify: true").replace("refine: false", "refine: true").replace("1.0e-3", "1.0e-5")
+    params.write_text(full, encoding="utf-8")  # the others verified: as the node is configured by default
+    planner = start_planner(backend_snippet, params, scenario=scenario)
+    with dump_on_failure(planner=planner):
+        wait_for(planner, "planner ready", 30)
+        listener = snippet(PLAN_ENTRIES)
+        listener.wait_for_line("listening")
+        snippet(RADAR % {"scenario": str(scenario), "stop": str(tmp_path / "never")}).wait_for_line("radar on", 30)
+        wait_for(planner, "plan #1", 150)
+        entries = json.loads(listener.wait_for_line("PLAN ", 30)[len("PLAN "):])
+        assert entries["A2"][:2] == [0, True] and entries["A3"][:2] == [0, True]  # OPTIMAL, verified
+        for cs, other in (("A1", "A4"), ("A4", "A1")):
+            status, verified, reason = entries[cs]
+            assert status == 2 and not verified  # FAILED
+            assert reason.startswith(f"lost separation with {other} at the plan start (0.1") and "0.25 nm" in reason
+
+
 def test_a_second_planner_under_the_same_name_refuses_to_start(backend_snippet, tmp_path: Path) -> None:  # noqa: F811
     """Two planners on one domain and namespace would both publish plans: the second exits 2 naming the first;
     another namespace, or --allow-duplicate, starts."""

@@ -64,6 +64,18 @@ class LandingSchedule:
         return [self.times[cs] for cs in self.order]
 
 
+def start_conflicts(scenario: Scenario, aircraft) -> list[tuple[Aircraft, Aircraft, float]]:
+    """The pairs of ``aircraft`` closer than the scenario's separation at their initial states, with their
+    distance (nm): no plan can separate them from the first instant."""
+    sep = scenario.separation_nm
+    out = []
+    for a, b in itertools.combinations(aircraft, 2):
+        d = float(np.linalg.norm(a.position - b.position))
+        if d < sep:
+            out.append((a, b, d))
+    return out
+
+
 def check_request(scenario: Scenario, gate_margin_nm: float = 0.0) -> None:
     """Raise :class:`InfeasibleRequest` (one line, naming the aircraft and the numbers) for impossible requests.
 
@@ -71,12 +83,9 @@ def check_request(scenario: Scenario, gate_margin_nm: float = 0.0) -> None:
     whatever it does, fixed landing times closer than the minimum spacing or their wake-turbulence minimum,
     fixed landing times earlier than any trajectory can reach the runway, a gate hole no aircraft can pass.
     """
-    sep = scenario.separation_nm
-    for a, b in itertools.combinations(scenario.aircraft, 2):
-        d = float(np.linalg.norm(a.position - b.position))
-        if d < sep:
-            raise InfeasibleRequest(f"{a.callsign} and {b.callsign} are {d:.3f} nm apart at the start "
-                                    f"(minimum separation {sep:g} nm)")
+    for a, b, d in start_conflicts(scenario, scenario.aircraft):
+        raise InfeasibleRequest(f"{a.callsign} and {b.callsign} are {d:.3f} nm apart at the start "
+                                f"(minimum separation {scenario.separation_nm:g} nm)")
     for ac in scenario.aircraft:
         reason = vertical_escape_problem(scenario, ac)
         if reason is not None:

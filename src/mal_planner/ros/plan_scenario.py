@@ -10,7 +10,7 @@ from typing import Any
 import numpy as np
 
 from mal_planner.dynamics import make_dynamics
-from mal_planner.initializer.schedule import landing_spacing, vertical_escape_problem
+from mal_planner.initializer.schedule import landing_spacing, start_conflicts, vertical_escape_problem
 from mal_planner.obstacles import Superquadric
 from mal_planner.ros.state_store import Track
 from mal_planner.scenario import Aircraft, Scenario
@@ -82,7 +82,9 @@ class PlanInputs:
 def build_plan_scenario(base: Scenario, tracks: Mapping[str, Track], plan_start: float,
                         landing_shift: float) -> PlanInputs:
     """Aircraft = the tracked ones, extrapolated to ``plan_start``; scenario data where the scenario knows
-    them (speed, model, limits, landing time minus ``landing_shift``), defaults otherwise."""
+    them (speed, model, limits, landing time minus ``landing_shift``), defaults otherwise. Aircraft that no plan
+    can serve are left out with the reason (outside the airspace or in an obstacle, leaving it, slower than the
+    wind, a pair closer than the separation), so that the others are planned."""
     left_out: dict[str, str] = {}
     aircraft: list[Aircraft] = []
     lo, hi = base.airspace[:, 0], base.airspace[:, 1]
@@ -117,6 +119,11 @@ def build_plan_scenario(base: Scenario, tracks: Mapping[str, Track], plan_start:
             left_out[cs] = f"leaving the airspace ({leaving.split(': ', 1)[1]})"
             continue
         aircraft.append(candidate)
+    for a, b, d in start_conflicts(base, aircraft):  # no plan separates them: the others are planned
+        for one, other in ((a, b), (b, a)):
+            left_out[one.callsign] = (f"lost separation with {other.callsign} at the plan start ({d:.3f} nm, "
+                                      f"minimum {base.separation_nm:g} nm)")
+    aircraft = [a for a in aircraft if a.callsign not in left_out]
     aircraft = _feasible_landing_times(base, aircraft)
     return PlanInputs(replace(base, aircraft=tuple(aircraft)), plan_start, left_out)
 

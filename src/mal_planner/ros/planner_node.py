@@ -485,7 +485,7 @@ class PlannerNode:
             return self._failed(job, inputs, f"{failure[0].replace('_', ' ')}: {failure[1]}", result)
         t_plan = time.perf_counter() - t0
         if explicit:  # answered in the response only: the radar plan others follow stays published
-            plan_msg = self._landing_plan_msg(result, inputs.plan_start, result.order)
+            plan_msg = self._landing_plan_msg(result, inputs.plan_start, result.order, inputs.left_out)
             paths = self._path_msgs(result, inputs.plan_start)
             path_msgs = [paths[cs] for cs in result.order]
         else:
@@ -506,7 +506,7 @@ class PlannerNode:
         publishes FAILED diagnostics with the reason and drops the planner's warm-start state, so that the
         next trigger plans from scratch. The response carries the reason and FAILED entries."""
         callsigns = [a.callsign for a in inputs.scenario.aircraft]
-        plan = self._landing_plan_msg(None, inputs.plan_start, callsigns)
+        plan = self._landing_plan_msg(None, inputs.plan_start, callsigns, inputs.left_out, reason)
         if job.explicit is None:
             cur = self._current
             extra: dict[str, Any] = {"failure": reason}
@@ -559,16 +559,22 @@ class PlannerNode:
         return True
 
     # -- messages --------------------------------------------------------------------------------------
-    def _landing_plan_msg(self, result: PlanResult | None, plan_start: float, callsigns: list[str]) -> Any:
+    def _landing_plan_msg(self, result: PlanResult | None, plan_start: float, callsigns: list[str],
+                          left_out: dict[str, str] | None = None, failure: str = "") -> Any:
+        """The LandingPlan of ``result`` (None: a failed plan of ``callsigns``, each FAILED with ``failure``),
+        followed by a FAILED entry with its reason for each aircraft left out of it."""
         T = self.types
         frame = self.scenario.geo_frame
+
+        def failed(k: int, cs: str, reason: str) -> Any:
+            return T.msg("mal_msgs/msg/AircraftPlan")(callsign=cs, order=k, gate_time=math.nan, landing_time=math.nan,
+                                                      status=FAILED, verified=False, reason=reason,
+                                                      target_time=math.nan, delay=math.nan,
+                                                      **geodetic_path_fields(None, np.zeros((0, 5))))
+
         entries = []
         if result is None:
-            entries = [T.msg("mal_msgs/msg/AircraftPlan")(callsign=cs, order=k, gate_time=math.nan,
-                                                          landing_time=math.nan, status=FAILED, verified=False,
-                                                          target_time=math.nan, delay=math.nan,
-                                                          **geodetic_path_fields(None, np.zeros((0, 5))))
-                       for k, cs in enumerate(callsigns, 1)]
+            entries = [failed(k, cs, failure) for k, cs in enumerate(callsigns, 1)]
         else:
             land, gates = result.landing_times(), result.gate_times()
             status = OPTIMAL if result.optimized else INITIAL_GUESS
@@ -585,6 +591,8 @@ class PlannerNode:
                     wake_category=result.scenario.aircraft_by_callsign(cs).wake_category or "",
                     target_time=target_time, delay=float(land[cs]) - target_time,
                     **geodetic_path_fields(frame, samples.get(cs, np.zeros((0, 5))))))
+        first = len(entries) + 1
+        entries += [failed(k, cs, why) for k, (cs, why) in enumerate(sorted((left_out or {}).items()), first)]
         header = T.msg("std_msgs/msg/Header")(stamp=time_to_msg(T, plan_start), frame_id=self.params.frame_id)
         return T.msg("mal_msgs/msg/LandingPlan")(header=header, aircraft=entries, **frame_origin_fields(frame))
 
@@ -602,7 +610,7 @@ class PlannerNode:
     def _publish_locked(self, result: PlanResult, inputs: PlanInputs, job: PlanJob) -> tuple[Any, list[Any]]:
         plan_start = inputs.plan_start
         paths = self._path_msgs(result, plan_start)
-        plan_msg = self._landing_plan_msg(result, plan_start, result.order)
+        plan_msg = self._landing_plan_msg(result, plan_start, result.order, inputs.left_out)
         trajectories = {tr.callsign: tr for tr in result.trajectories()}
         lost = set(paths) - set(self.tracks.snapshot()) if job.explicit is None else set()
         if lost:  # tracks that timed out while this plan ran: withdrawn, not published
@@ -629,7 +637,8 @@ class PlannerNode:
         self._published_paths = set(paths)
         self.plan_pub.publish(plan_msg)
         self._publish_markers(list(trajectories.values()), plan_start)
-        self._publish_diagnostics(result, self._status_text(result))
+        left_out = {"left_out": "; ".join(f"{cs}: {why}" for cs, why in sorted(inputs.left_out.items()))}
+        self._publish_diagnostics(result, self._status_text(result), extra=left_out if inputs.left_out else None)
         return plan_msg, [paths[cs] for cs in result.order]
 
     def _mark_kept(self, failure: str, radar_time: float) -> None:
