@@ -178,7 +178,13 @@ def settle(seconds):
         node.spin_once(0.05)
 Trigger = T.srv("std_srvs/srv/Trigger")
 settle(0.5)
-out = {"stamp_before": msg_to_time(plans[-1]), "bad": set_("replan_period_s", -1.0),
+descp = node.create_client("rcl_interfaces/srv/DescribeParameters", "/planner/describe_parameters")
+assert descp.wait_for_service(20)
+desc = descp.call(T.srv("rcl_interfaces/srv/DescribeParameters").Request(names=["degree", "output_dt"]),
+                  timeout_sec=20).descriptors
+out = {"ranges": [[desc[0].integer_range[0].from_value, desc[0].integer_range[0].to_value],
+                  [desc[1].floating_point_range[0].from_value, desc[1].floating_point_range[0].to_value]]}
+out |= {"stamp_before": msg_to_time(plans[-1]), "bad": set_("replan_period_s", -1.0),
        "after_bad": get("replan_period_s"), "set_iter": set_("max_nlp_iterations", 1)}
 res = trigger.call(Trigger.Request(), timeout_sec=150)
 out["failed"] = [res.success, res.message]
@@ -338,7 +344,8 @@ def test_replay_to_paths_services_and_latched(backend_snippet, snippet, tmp_path
         # Parameters at run time: a refused value keeps the old one; a failed plan keeps the last plan
         # published and reports FAILED; the next trigger plans again.
         params = json.loads(snippet(PARAMS_CLIENT).wait_for_line("PARAMS ", 300)[len("PARAMS "):])
-        assert params["bad"] == [False, "parameter 'replan_period_s': must be >= 0, got -1.0"]
+        assert params["bad"] == [False, "Parameter replan_period_s out of range Min: 0.0, Max: inf, value: -1.0"]
+        assert params["ranges"] == [[2, 16], [0.01, 60.0]]  # on both backends, as `ros2 param describe` shows
         assert params["after_bad"] == 0.0 and params["set_iter"] == [True, ""]
         assert params["failed"][0] is False and "keeping the last plan" in params["failed"][1]
         assert params["diag_failed"][0] == 2 and params["diag_failed"][1].startswith("FAILED: ")

@@ -109,7 +109,8 @@ def test_ros2_param_list_get_set_dump(planner: Planner) -> None:
     planner.wait_for("plan requested: periodic replan", 30)  # it takes effect
     ros2(["param", "set", "/planner", "replan_period_s", "0.0", "--no-daemon"], planner.ros)
     bad = ros2(["param", "set", "/planner", "replan_period_s", "-1.0", "--no-daemon"], planner.ros)
-    assert bad.stderr.strip() == "Setting parameter failed: parameter 'replan_period_s': must be >= 0, got -1.0", bad
+    assert bad.stderr.strip() == ("Setting parameter failed: Parameter replan_period_s out of range Min: 0.0, "
+                                  "Max: inf, value: -1.0"), bad  # the descriptor's range, in rclpy's words
     wrong_type = ros2(["param", "set", "/planner", "replan_period_s", "5", "--no-daemon"], planner.ros).stderr
     assert "Setting parameter failed: Wrong parameter type" in wrong_type
     assert ros2(["param", "get", "/planner", "replan_period_s", "--no-daemon"], planner.ros).stdout.strip() == (
@@ -118,6 +119,10 @@ def test_ros2_param_list_get_set_dump(planner: Planner) -> None:
     assert dump.startswith("/planner:\n  ros__parameters:\n") and "    mesh_tol: 0.001\n" in dump, dump
     describe = ros2(["param", "describe", "/planner", "radar_qos", "--no-daemon"], planner.ros).stdout
     assert "Type: string" in describe and "read-only at run time" in describe
+    degree = ros2(["param", "describe", "/planner", "degree", "--no-daemon"], planner.ros).stdout
+    assert "Type: integer" in degree and "Min value: 2" in degree and "Max value: 16" in degree, degree
+    too_big = ros2(["param", "set", "/planner", "degree", "1000", "--no-daemon"], planner.ros).stderr
+    assert too_big.strip() == "Setting parameter failed: Parameter degree out of range. Min: 2, Max: 16, value: 1000"
 
 
 def test_ros2_topic_echo_rosout(planner: Planner) -> None:

@@ -248,6 +248,21 @@ def test_a_pair_too_close_at_the_start_leaves_the_others_planned(backend_snippet
             assert reason.startswith(f"lost separation with {other} at the plan start (0.1") and "0.25 nm" in reason
 
 
+def test_out_of_range_parameters_in_the_file_are_replaced_by_their_defaults(backend_snippet, tmp_path: Path  # noqa: F811
+                                                                           ) -> None:
+    """rclpy refuses to declare a value outside the descriptor's range; the node still starts on both backends,
+    each bad value reported in one line and replaced by its default."""
+    params = tmp_path / "planner.params.yaml"
+    params.write_text(coarse_params("    figures: false\n").replace("degree: 5", "degree: 1000").replace(
+        "output_dt: 1.0", "output_dt: 1.0e-9"), encoding="utf-8")
+    planner = start_planner(backend_snippet, params)
+    with dump_on_failure(planner=planner):
+        assert "must be <= 16, got 1000; using the default 6" in wait_for(planner, "parameter 'degree'", 30)
+        assert "using the default 0.25" in wait_for(planner, "parameter 'output_dt'", 30)
+        ready = wait_for(planner, "planner ready", 30)
+        assert "degree=6" in ready and "output_dt=0.25" in ready
+
+
 def test_a_second_planner_under_the_same_name_refuses_to_start(backend_snippet, tmp_path: Path) -> None:  # noqa: F811
     """Two planners on one domain and namespace would both publish plans: the second exits 2 naming the first;
     another namespace, or --allow-duplicate, starts."""

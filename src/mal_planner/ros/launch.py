@@ -15,6 +15,10 @@ the part's name and also written to ``<out>/logs/<part>.log``. SIGINT/SIGTERM ar
 children; the recorder is stopped last so that the bag is complete. The children die with the launcher even
 when it is killed (SIGKILL): on Linux each gets SIGTERM when its parent dies (PR_SET_PDEATHSIG). A child that
 ends unasked is reported with its exit code, a signal by name (``planner killed by SIGTERM (exit -15)``).
+With ``--respawn`` (ROS 2 launch's ``respawn=True``, ``respawn_delay``) a planner that ends unasked while the
+radar source runs is started again with the same arguments after ``--respawn-delay`` seconds, at most
+``--respawn-max`` times; the recorder goes on recording into the same bag. A planner stopped by the launcher
+is not respawned, nor one that ends after a finite source has ended (no radar would come for a new one).
 The inputs (bag, scenario, params file) are checked before any child starts or any folder is made: a bad
 one ends the launcher with exit code 2 and one line on stderr.
 
@@ -48,6 +52,11 @@ REPO = Path(__file__).resolve().parents[3]
 STATUS_FILE = "planner_status.json"
 READY = {"recorder": "record: recording", "planner": "planner ready"}
 STOP_TIMEOUT_S = 15.0
+RESPAWNABLE = ("planner",)
+# Not ROS 2 launch's 0: a planner that fails at start-up would burn its attempts in a busy loop; 1 s is small next to
+# what a restart costs anyway (interpreter and CasADi import, the duplicate probe, settle_time_s).
+RESPAWN_DELAY_S = 1.0
+RESPAWN_MAX = 3
 
 
 PR_SET_PDEATHSIG = 1  # linux/prctl.h
@@ -83,11 +92,12 @@ def exit_text(code: int | None) -> str:
 class Child:
     """One child process; its merged output is echoed with a prefix and saved to a log file."""
 
-    def __init__(self, name: str, args: Sequence[str], env: dict[str, str], log_dir: Path) -> None:
-        self.name = name
+    def __init__(self, name: str, args: Sequence[str], env: dict[str, str], log_dir: Path,
+                 append: bool = False) -> None:
+        self.name, self.args, self.env, self.log_dir = name, list(args), env, log_dir
         self.ready = threading.Event()
         self._ready_text = READY.get(name)
-        self._log: TextIO = (log_dir / f"{name}.log").open("w", encoding="utf-8")
+        self._log: TextIO = (log_dir / f"{name}.log").open("a" if append else "w", encoding="utf-8")
         self.proc = subprocess.Popen([sys.executable, "-u", "-m", *args], env=env, stdout=subprocess.PIPE,
                                      stderr=subprocess.STDOUT, text=True, start_new_session=True,
                                      preexec_fn=_die_with_parent(os.getpid()))
@@ -155,6 +165,12 @@ def parse_args(argv: list[str] | None = None) -> argparse.Namespace:
     p.add_argument("--timeout", type=float, default=300.0,
                    help="after the radar source ended, wait this long for the plan (default 300 s)")
     p.add_argument("--keep-running", action="store_true", help="do not stop when the radar source ends")
+    p.add_argument("--respawn", action="store_true",
+                   help="restart the planner when it ends unasked (crash, SIGKILL), as ROS 2 launch's respawn=True")
+    p.add_argument("--respawn-delay", type=float, default=RESPAWN_DELAY_S, metavar="S",
+                   help=f"wait this long before a respawn (default {RESPAWN_DELAY_S:g} s)")
+    p.add_argument("--respawn-max", type=int, default=RESPAWN_MAX, metavar="N",
+                   help=f"respawn at most N times, then end as without --respawn (default {RESPAWN_MAX})")
     args = p.parse_args(argv)
     if args.rate < 0 or args.sim_rate <= 0 or args.duration < 0 or args.timeout <= 0 or args.sim_speed <= 0 \
             or args.gust_kt < 0 or args.noise_m < 0:
@@ -216,6 +232,7 @@ class Launcher:
         self.out = Path(args.out)
         self.stop_requested = threading.Event()
         self.children: dict[str, Child] = {}
+        self.respawns = 0
 
     def _start(self, name: str, module_args: list[str], env: dict[str, str]) -> Child:
         child = Child(name, module_args, env, self.out / "logs")
@@ -232,6 +249,10 @@ class Launcher:
     def check_inputs(self, scenario: str, params: str, bag: Path | None) -> str | None:
         """None when the inputs are usable, else a one-line reason (checked before anything starts)."""
         a = self.args
+        if a.respawn_max < 1:
+            return f"--respawn-max: must be at least 1 (got {a.respawn_max})"
+        if a.respawn_delay < 0:
+            return f"--respawn-delay: must be >= 0 s (got {a.respawn_delay:g})"
         if bag is not None and bag.exists():
             return f"{bag} exists already; remove it or choose another --record"
         if a.replay is not None:
@@ -299,9 +320,13 @@ class Launcher:
         source_done_at: float | None = None
         idle_since: float | None = None
         while not self.stop_requested.wait(0.2):
-            for name, child in self.children.items():
-                if child is not source and not child.running():
-                    return self._shutdown(failed=f"{name} {exit_text(child.proc.returncode)}")
+            for name, child in list(self.children.items()):
+                if child is source or child.running():
+                    continue
+                if not self._may_respawn(child, finite and source_done_at is not None):
+                    again = f" (respawned {self.respawns} time(s))" if self.respawns else ""
+                    return self._shutdown(failed=f"{name} {exit_text(child.proc.returncode)}{again}")
+                self._respawn(child)
             if source_done_at is None and not source.running():
                 if source.proc.returncode != 0:
                     return self._shutdown(failed=f"{source.name} {exit_text(source.proc.returncode)}")
@@ -319,6 +344,26 @@ class Launcher:
             if time.monotonic() - source_done_at > self.args.timeout:
                 return self._shutdown(failed=f"no plan within {self.args.timeout:.0f} s after the radar ended")
         return self._shutdown(status=read_status(self.out), interrupted=True)
+
+    def _may_respawn(self, child: Child, source_ended: bool) -> bool:
+        """Whether a child that ended unasked is started again (``--respawn``, attempts left, radar to come)."""
+        return (self.args.respawn and child.name in RESPAWNABLE and self.respawns < self.args.respawn_max
+                and not source_ended)
+
+    def _respawn(self, child: Child) -> None:
+        """Start ``child`` again with its arguments after ``--respawn-delay``; its log goes on in the same file.
+        Runs on the main thread: PR_SET_PDEATHSIG fires when the thread that started a child ends."""
+        code = child.proc.returncode
+        child.stop()  # reaped already: joins the output pump, closes the log
+        if self.stop_requested.wait(self.args.respawn_delay):
+            return  # stopping: the loop shuts down
+        self.respawns += 1
+        if child.name == "planner":  # the launcher waits for the new planner's status, not the dead one's
+            (self.out / STATUS_FILE).unlink(missing_ok=True)
+        new = Child(child.name, child.args, child.env, child.log_dir, append=True)
+        self.children[child.name] = new
+        print(f"launch: {child.name} {exit_text(code)}: respawned as pid {new.proc.pid} after "
+              f"{self.args.respawn_delay:g} s (attempt {self.respawns} of {self.args.respawn_max})", flush=True)
 
     def _shutdown(self, failed: str | None = None, status: dict[str, Any] | None = None,
                   interrupted: bool = False) -> int:

@@ -5,6 +5,7 @@ from __future__ import annotations
 import logging
 import math
 import re
+import sys
 from collections.abc import Callable, Mapping
 from dataclasses import dataclass, fields
 from pathlib import Path
@@ -25,6 +26,10 @@ def _bool(v: Any) -> bool:
     raise ValueError("expected true or false")
 
 
+INT64_MAX = 2**63 - 1
+"""The largest ROS 2 integer parameter (int64): the upper end of an integer range with no upper bound."""
+
+
 def _int(lo: int, hi: int | None = None) -> Check:
     def check(v: Any) -> int:
         if isinstance(v, bool) or not isinstance(v, (int, float)) or int(v) != v:
@@ -34,6 +39,7 @@ def _int(lo: int, hi: int | None = None) -> Check:
         if hi is not None and v > hi:
             raise ValueError(f"must be <= {hi}")
         return int(v)
+    check.value_range = (lo, INT64_MAX if hi is None else hi)  # type: ignore[attr-defined]
     return check
 
 
@@ -48,7 +54,15 @@ def _float(positive: bool = False, lo: float | None = None, hi: float | None = N
         if hi is not None and v > hi:
             raise ValueError(f"must be <= {hi:g}")
         return float(v)
+    # the descriptor's inclusive range: "> 0" as the smallest positive double
+    low = lo if lo is not None else (sys.float_info.min if positive else 0.0)
+    check.value_range = (low, math.inf if hi is None else hi)  # type: ignore[attr-defined]
     return check
+
+
+def value_range(name: str) -> tuple[float, float] | None:
+    """The inclusive range of a numeric parameter (for its descriptor: ``ros2 param describe``), or None."""
+    return getattr(PARAMETERS[name][1], "value_range", None)
 
 
 def _str(v: Any) -> str:
@@ -95,8 +109,8 @@ def _initializer(v: Any) -> str:
     return str(v)
 
 
-def _seed(v: Any) -> int:
-    return _int(-1)(v)
+_seed = _int(-1)
+"""A random seed, or -1 for a random one."""
 
 
 MAX_SEGMENTS = 64
@@ -229,8 +243,8 @@ def declare_parameters(node: Any, source: str, log: logging.Logger) -> NodeParam
     """Declare every parameter on ``node`` and validate; a bad value is logged and replaced by its default."""
     values: dict[str, Any] = {}
     for name, (default, check, doc) in PARAMETERS.items():
-        raw = node.declare_parameter(name, default, doc + (" (read-only at run time)" if name in READ_ONLY else "")
-                                     ).value
+        raw = node.declare_parameter(name, default, doc + (" (read-only at run time)" if name in READ_ONLY else ""),
+                                     value_range=value_range(name)).value
         try:
             values[name] = check(raw)
         except ValueError as exc:

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import logging
+import math
 import re
 import threading
 from collections.abc import Callable, Mapping
@@ -59,6 +60,8 @@ class Parameter:
 
 #: rcl_interfaces/msg/ParameterType values and the ParameterValue field holding each.
 NOT_SET, BOOL, INTEGER, DOUBLE, STRING = 0, 1, 2, 3, 4
+RCLPY_PARAM_REL_TOL = 1e-6
+"""rclpy's Node.PARAM_REL_TOL: a double at a range's bound within this relative tolerance is in range."""
 BYTE_ARRAY, BOOL_ARRAY, INTEGER_ARRAY, DOUBLE_ARRAY, STRING_ARRAY = 5, 6, 7, 8, 9
 VALUE_FIELDS = {BOOL: "bool_value", INTEGER: "integer_value", DOUBLE: "double_value", STRING: "string_value",
                 BYTE_ARRAY: "byte_array_value", BOOL_ARRAY: "bool_array_value",
@@ -216,10 +219,15 @@ class ParameterStore:
         self._params: dict[str, Parameter] = {}
         self.types: dict[str, int] = {}
         self.descriptions: dict[str, str] = {}
+        self.ranges: dict[str, tuple[float, float]] = {}
         self.callbacks: list[SetParametersCallback] = []
         self.lock = threading.RLock()
 
-    def declare(self, name: str, default: Any = None, description: str = "") -> Parameter:
+    def declare(self, name: str, default: Any = None, description: str = "",
+                value_range: tuple[float, float] | None = None) -> Parameter:
+        """Declare ``name``; ``value_range`` (inclusive, of an integer or double parameter) is described and
+        enforced on sets, as rclpy does with a descriptor's integer/floating-point range (an override outside it
+        is kept here: the node's own check replaces it, as with rclpy's backend)."""
         with self.lock:
             if name in self._params:
                 msg = f"parameter {name!r} already declared"
@@ -228,7 +236,23 @@ class ParameterStore:
             self._params[name] = param
             self.types[name] = parameter_type(default if default is not None else param.value)
             self.descriptions[name] = description
+            if value_range is not None:
+                self.ranges[name] = value_range
             return param
+
+    def range_problem(self, param: Parameter) -> str | None:
+        """rclpy's refusal (same words) of a value outside the parameter's range, or None."""
+        bounds = self.ranges.get(param.name)
+        if bounds is None or isinstance(param.value, bool) or not isinstance(param.value, int | float):
+            return None
+        lo, hi = bounds
+        if param.value in (lo, hi) or (self.types[param.name] == DOUBLE and any(
+                math.isclose(param.value, b, rel_tol=RCLPY_PARAM_REL_TOL) for b in bounds)):
+            return None
+        if lo < param.value < hi:
+            return None
+        gap = " " if self.types[param.name] == DOUBLE else ". "  # rclpy's two messages differ so
+        return f"Parameter {param.name} out of range{gap}Min: {lo}, Max: {hi}, value: {param.value}"
 
     def names(self) -> list[str]:
         with self.lock:
@@ -245,6 +269,8 @@ class ParameterStore:
                 if declared != NOT_SET and kind != declared:
                     return False, (f"Wrong parameter type, parameter {{{p.name}}} is of type "
                                    f"{{{TYPE_NAMES[declared]}}}, setting it to {{{TYPE_NAMES[kind]}}} is not allowed.")
+                if (problem := self.range_problem(p)) is not None:
+                    return False, problem
             for callback in self.callbacks:
                 ok, reason = callback(list(params))
                 if not ok:

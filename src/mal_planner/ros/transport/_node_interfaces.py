@@ -15,6 +15,8 @@ from typing import TYPE_CHECKING, Any
 import mal_msgs_py
 
 from ._common import (
+    DOUBLE,
+    INTEGER,
     NOT_SET,
     QOS_PARAMETER_EVENTS,
     QOS_PARAMETERS,
@@ -102,9 +104,20 @@ class NodeInterfaces:
         if not all(n in names for n in request.names):  # rclpy: all default descriptors
             response.descriptors = [desc() for _ in request.names]
             return response
-        response.descriptors = [desc(name=n, type=self._store.types[n], description=self._store.descriptions[n])
-                                for n in request.names]
+        response.descriptors = [self._descriptor(desc, n) for n in request.names]
         return response
+
+    def _descriptor(self, desc: Any, name: str) -> Any:
+        """A parameter's descriptor: type, description and, where declared, its range (as rclpy's)."""
+        out = desc(name=name, type=self._store.types[name], description=self._store.descriptions[name])
+        bounds = self._store.ranges.get(name)
+        if bounds is not None and out.type == INTEGER:
+            out.integer_range = [self._node.types.msg("rcl_interfaces/msg/IntegerRange")(
+                from_value=int(bounds[0]), to_value=int(bounds[1]), step=0)]
+        elif bounds is not None and out.type == DOUBLE:
+            out.floating_point_range = [self._node.types.msg("rcl_interfaces/msg/FloatingPointRange")(
+                from_value=float(bounds[0]), to_value=float(bounds[1]), step=0.0)]
+        return out
 
     def _get(self, request: Any, response: Any) -> Any:
         names = self._store.names()

@@ -365,8 +365,9 @@ class CycloneNode:
     def resolve(self, name: str) -> str:
         return resolve_name(name, self._namespace, self._name)
 
-    def declare_parameter(self, name: str, default: Any = None, description: str = "") -> Parameter:
-        param = self._params.declare(name, default, description)
+    def declare_parameter(self, name: str, default: Any = None, description: str = "",
+                          value_range: tuple[float, float] | None = None) -> Parameter:
+        param = self._params.declare(name, default, description, value_range)
         if self._interfaces is not None:
             self._interfaces.parameter_event(new=[param])
         return param

@@ -18,7 +18,7 @@ from pathlib import Path
 from typing import Any
 
 import rclpy
-from rcl_interfaces.msg import ParameterDescriptor, SetParametersResult
+from rcl_interfaces.msg import FloatingPointRange, IntegerRange, ParameterDescriptor, SetParametersResult
 from rclpy.callback_groups import ReentrantCallbackGroup
 from rclpy.duration import Duration
 from rclpy.executors import MultiThreadedExecutor
@@ -186,16 +186,33 @@ class RclpyNode:
     def resolve(self, name: str) -> str:
         return str(self.node.resolve_topic_name(name))
 
-    def declare_parameter(self, name: str, default: Any = None, description: str = "") -> Parameter:
-        from rclpy.exceptions import InvalidParameterTypeException
+    def declare_parameter(self, name: str, default: Any = None, description: str = "",
+                          value_range: tuple[float, float] | None = None) -> Parameter:
+        """Declare with a descriptor (``value_range``: an inclusive integer or floating-point range, which rclpy
+        enforces on sets). An override that rclpy refuses (another type, out of range) does not stop the node:
+        it is returned as given, for the node's own check to report and replace, as on the built-in backend."""
+        from rclpy.exceptions import InvalidParameterTypeException, InvalidParameterValueException
 
+        descriptor = ParameterDescriptor(description=description)
+        if value_range is not None and isinstance(default, bool):
+            pass
+        elif value_range is not None and isinstance(default, int):
+            descriptor.integer_range = [IntegerRange(from_value=int(value_range[0]), to_value=int(value_range[1]))]
+        elif value_range is not None and isinstance(default, float):
+            descriptor.floating_point_range = [FloatingPointRange(from_value=float(value_range[0]),
+                                                                  to_value=float(value_range[1]))]
         try:
-            param = self.node.declare_parameter(name, default, ParameterDescriptor(description=description))
+            param = self.node.declare_parameter(name, default, descriptor)
         except InvalidParameterTypeException:
             # A params file with another type than the default (e.g. the former `figures: false`): let the
             # node's own check (node_params) decide, as the built-in backend does.
-            param = self.node.declare_parameter(name, default, ParameterDescriptor(description=description,
-                                                                                   dynamic_typing=True))
+            descriptor.dynamic_typing = True
+            descriptor.integer_range, descriptor.floating_point_range = [], []
+            param = self.node.declare_parameter(name, default, descriptor)
+        except InvalidParameterValueException:  # outside the range: declared at the default, reported by the node
+            override = self.node._parameter_overrides.get(name)  # rclpy keeps the file's values there
+            self.node.declare_parameter(name, default, descriptor, ignore_override=True)
+            return Parameter(name, default if override is None else override.value)
         return Parameter(name, param.value)
 
     def add_on_set_parameters_callback(self, callback: SetParametersCallback) -> None:
