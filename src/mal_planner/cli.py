@@ -107,7 +107,7 @@ def main(argv: list[str] | None = None) -> int:
         args.seed = secrets.randbelow(2**31)
         print(f"mal-plan: random seed {args.seed}", file=sys.stderr)
     # Imported after argument parsing: CasADi and OMPL take a moment to load.
-    from mal_planner.errors import InfeasibleRequest
+    from mal_planner.errors import InfeasibleRequest, TimeLimitReached
     from mal_planner.initializer import PlanningFailed, known_specs
     from mal_planner.pipeline import Planner, PlanOptions
     from mal_planner.report import summary_table, write_figures, write_outputs
@@ -127,6 +127,9 @@ def main(argv: list[str] | None = None) -> int:
     except InfeasibleRequest as exc:
         print(f"mal-plan: error: {args.scenario}: impossible request: {exc}", file=sys.stderr)
         return 2
+    except TimeLimitReached as exc:  # in the initializer: nothing to write yet
+        print(f"mal-plan: timeout: {args.scenario}: {exc}", file=sys.stderr)
+        return 4
     except PlanningFailed as exc:
         print(f"mal-plan: error: {args.scenario}: initializer failed: {exc}", file=sys.stderr)
         return 1

@@ -5,6 +5,8 @@ from __future__ import annotations
 import math
 import time
 
+from mal_planner.errors import TimeLimitReached
+
 
 class Deadline:
     """``Deadline(None)`` never expires; ``Deadline(10.0)`` expires 10 s after it was made."""
@@ -20,3 +22,13 @@ class Deadline:
 
     def expired(self) -> bool:
         return time.monotonic() >= self._end
+
+    def check(self) -> None:
+        """Raise :class:`TimeLimitReached` ("time limit 60 s reached") once the limit has run out; cheap enough
+        for every iteration of a planner's loop (no clock read without a limit)."""
+        if self.seconds is not None and time.monotonic() >= self._end:
+            raise TimeLimitReached(f"time limit {self.seconds:g} s reached")
+
+
+NO_DEADLINE = Deadline(None)
+"""The deadline of a call made without one: it never expires."""

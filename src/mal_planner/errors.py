@@ -37,3 +37,10 @@ class InfeasibleRequest(PlanningError, ValueError):
     """A well-formed request that no plan can satisfy (found before any NLP is built)."""
 
     failure_class: FailureClass = "infeasible_request"
+
+
+class TimeLimitReached(PlanningError):
+    """The plan's time limit ran out in a stage with nothing to return yet (the initializer); ``str()`` names the
+    stage, e.g. "time limit 60 s reached in the initializer (RRT of aircraft T07, 41 of 100 planned)"."""
+
+    failure_class: FailureClass = "timeout"

@@ -9,7 +9,7 @@ from dataclasses import dataclass, field, replace
 import numpy as np
 
 from mal_planner.deadline import Deadline
-from mal_planner.errors import FailureClass, InvalidInput
+from mal_planner.errors import FailureClass, InvalidInput, TimeLimitReached
 from mal_planner.initializer.planners import PlanningFailed, known_specs
 from mal_planner.initializer.schedule import check_request
 from mal_planner.initializer.sequencer import InitialPlan, Sequencer, plan_initial
@@ -38,7 +38,8 @@ class PlanOptions:
     refinement_rounds: int = 3
     """Re-solves with a locally refined mesh where the verification finds a path constraint broken."""
     time_limit_s: float | None = None
-    """Wall-clock limit of one plan; when it runs out the best result so far is returned (None: no limit)."""
+    """Wall-clock limit of one whole plan, initializer included; when it runs out the best result so far is
+    returned, or :class:`InitializerTimeout` raised when there is none yet (None: no limit)."""
     landed_within_turn_times: float = 0.4
     """On a replan, aircraft this close to their last planned landing leave the plan (in the scenario's turn
     times; thesis: 3 s)."""
@@ -56,6 +57,8 @@ class PlanResult:
     """Clock time of the initial states; every time in the result is relative to it."""
     timed_out: bool = False
     """The time limit ran out (the result is the best found until then)."""
+    stopped: str | None = None
+    """Where the time limit stopped a stage that had no result yet (one line), e.g. a fallback's initializer."""
 
     @property
     def optimized(self) -> bool:
@@ -74,8 +77,10 @@ class PlanResult:
         if not self.options.optimize:
             return None
         if self.landing is None or not self.landing.success:
-            status = self.landing.status if self.landing is not None else "not run"
-            return ("timeout" if self.timed_out else "optimizer_failed"), f"optimizer: {status}"
+            reasons = [self.stopped] if self.stopped else []
+            if self.landing is not None or not reasons:
+                reasons.append(f"optimizer: {self.landing.status if self.landing is not None else 'not run'}")
+            return ("timeout" if self.timed_out else "optimizer_failed"), "; ".join(reasons)
         if self.verification is None:
             return None if not self.options.verify else ("timeout", "time limit reached before the verification")
         if not self.verification.verified:
@@ -154,6 +159,9 @@ class Planner:
         self._optimizer: LandingOptimizer | SequentialOptimizer | None = None
         self._initial: InitialPlan | None = None
         """The initial plan the latest attempt started from (a fallback may have made a new one)."""
+        self._deadline = Deadline(None)
+        """The deadline of the plan under way (for the sequential optimizer's new initial paths)."""
+        self._stopped: str | None = None
         self.last: PlanResult | None = None
 
     def plan(self, scenario: Scenario, reuse: bool = True, start_time: float = 0.0,
@@ -162,10 +170,12 @@ class Planner:
 
         ``initial`` supplies the initializer's result instead of running it (e.g. one computed before).
         Raises :class:`InfeasibleRequest` for requests no plan can meet (before any expensive work) and
-        :class:`PlanningFailed` when the initializer finds no path.
+        :class:`PlanningFailed` when the initializer finds no path: :class:`InitializerTimeout` (failure class
+        ``timeout``, its message names the stage) when the time limit runs out in it.
         """
         opts = self.options
-        deadline = Deadline(opts.time_limit_s)
+        self._deadline = deadline = Deadline(opts.time_limit_s)
+        self._stopped = None
         scenario = self._without_landed(inside_airspace(scenario), start_time)
         check_request(scenario, opts.landing.margins.in_nm(Scales.of(scenario)).hole_nm)
         timings: dict[str, float] = {}
@@ -178,7 +188,7 @@ class Planner:
             log.info("replanning %.1f s after the previous plan (warm start)", start_time - last.start_time)
         elif initial is None:
             log.info("initializer %s (seed %s) on %d aircraft", opts.initializer, opts.seed, len(scenario.aircraft))
-            initial = plan_initial(scenario, opts.initializer, seed=opts.seed)
+            initial = plan_initial(scenario, opts.initializer, seed=opts.seed, deadline=deadline)
         timings["initializer_s"] = time.perf_counter() - t0
         landing = None
         if opts.optimize:
@@ -190,7 +200,7 @@ class Planner:
         if landing is not None and landing.success and opts.verify:
             landing, report = self._verify_and_refine(scenario, landing, timings, deadline)
         result = PlanResult(scenario, opts, initial, landing, report, timings, start_time,
-                            timed_out=deadline.expired())
+                            timed_out=deadline.expired() or self._stopped is not None, stopped=self._stopped)
         if result.optimized and (report is None or report.verified):
             self.last = result
         return result
@@ -248,6 +258,10 @@ class Planner:
                 break
             try:
                 candidate = attempt(scenario, start_time, deadline)  # type: ignore[operator]
+            except TimeLimitReached as exc:  # a fallback's initializer: nothing more can be tried
+                self._stopped = f"{exc}, in the {name}"
+                log.warning("%s", self._stopped)
+                break
             except (PlanningFailed, ValueError, KeyError, IndexError, RuntimeError) as exc:
                 log.warning("%s failed: %s", name, " ".join(str(exc).split()) or type(exc).__name__)
                 continue
@@ -269,7 +283,8 @@ class Planner:
         """A new initial guess of one aircraft, clear of ``traffic`` (the sequential strategy's first recovery)."""
         seed = None if self.options.seed is None else self.options.seed + 7919 * (attempt + 1)
         try:
-            path = Sequencer(self.options.initializer).replan_one(scenario, callsign, landing_time, traffic, seed)
+            path = Sequencer(self.options.initializer).replan_one(scenario, callsign, landing_time, traffic, seed,
+                                                                  deadline=self._deadline)
         except PlanningFailed as exc:
             log.info("%s: no new initial path (%s)", callsign, exc)
             return None
@@ -308,14 +323,14 @@ class Planner:
 
     def _fresh_initializer(self, scenario: Scenario, start_time: float, deadline: Deadline) -> LandingResult:
         opts = self.options
-        self._initial = plan_initial(scenario, opts.initializer, seed=opts.seed)
+        self._initial = plan_initial(scenario, opts.initializer, seed=opts.seed, deadline=deadline)
         return self._cold_attempt(scenario, start_time, deadline)
 
     def _reseeded_attempt(self, scenario: Scenario, start_time: float, deadline: Deadline) -> LandingResult:
         """Another initial guess (IPOPT's infeasibility verdicts are local): the initializer with a new seed."""
         opts = self.options
         seed = None if opts.seed is None else opts.seed + 1000
-        self._initial = plan_initial(scenario, opts.initializer, seed=seed)
+        self._initial = plan_initial(scenario, opts.initializer, seed=seed, deadline=deadline)
         return self._cold_attempt(scenario, start_time, deadline)
 
     def _free_times_attempt(self, scenario: Scenario, start_time: float, deadline: Deadline) -> LandingResult:

@@ -15,6 +15,7 @@ from dataclasses import dataclass
 import numpy as np
 from scipy.spatial import cKDTree
 
+from mal_planner.deadline import NO_DEADLINE, Deadline
 from mal_planner.initializer.collision import CollisionChecker
 from mal_planner.initializer.planners import PlanningFailed, default_step, require_free_endpoints
 from mal_planner.initializer.smoothing import SmoothedSearch
@@ -154,9 +155,11 @@ class MultiRRT(SmoothedSearch):
         self.last_trees = 0
 
     def search(
-        self, checker: CollisionChecker, start: np.ndarray, goal: np.ndarray, rng: np.random.Generator
+        self, checker: CollisionChecker, start: np.ndarray, goal: np.ndarray, rng: np.random.Generator,
+        deadline: Deadline | None = None,
     ) -> np.ndarray:
-        """The unsmoothed path through the merged tree (K, 3)."""
+        """The unsmoothed path through the merged tree (K, 3); ``deadline`` is checked every iteration."""
+        deadline = deadline or NO_DEADLINE
         start, goal = require_free_endpoints(checker, self.spec, start, goal)
         if checker.segment_free(start, goal):
             self.last_iterations, self.last_trees = 0, 1
@@ -169,6 +172,7 @@ class MultiRRT(SmoothedSearch):
         lo, hi = checker.lower, checker.upper
         max_edge = self.max_edge or default_step(checker)
         for it in range(self.max_iterations):
+            deadline.check()
             if it < len(seeds):
                 sample = seeds[it]
             elif rng.random() < self.goal_bias:

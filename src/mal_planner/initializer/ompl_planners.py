@@ -4,8 +4,8 @@ The state space is ``RealVectorStateSpace(3)`` bounded by the airspace; both the
 and the motion validator call our :class:`CollisionChecker`, so OMPL's motions are tested with the exact
 segment check and cannot step through a thin wall. OMPL's global RNG is re-seeded from the caller's
 NumPy generator before every query, and planners stop after a fixed number of iterations (or at the
-time limit), so results are reproducible unless the time limit is hit. Paths are simplified with our
-shortcutting.
+time limit: the query's own or what is left of the plan's), so results are reproducible unless a time limit
+is hit. Paths are simplified with our shortcutting.
 """
 
 from __future__ import annotations
@@ -16,6 +16,7 @@ from functools import cache
 
 import numpy as np
 
+from mal_planner.deadline import NO_DEADLINE, Deadline
 from mal_planner.initializer.collision import CollisionChecker
 from mal_planner.initializer.planners import OMPL_PREFIX, PlanningFailed, default_step, require_free_endpoints
 from mal_planner.initializer.smoothing import SmoothedSearch
@@ -68,13 +69,17 @@ class OmplPlanner(SmoothedSearch):
         self.last_iterations = 0
 
     def search(
-        self, checker: CollisionChecker, start: np.ndarray, goal: np.ndarray, rng: np.random.Generator
+        self, checker: CollisionChecker, start: np.ndarray, goal: np.ndarray, rng: np.random.Generator,
+        deadline: Deadline | None = None,
     ) -> np.ndarray:
-        """The planner's raw path (K, 3); raises :class:`PlanningFailed`."""
+        """The planner's raw path (K, 3); raises :class:`PlanningFailed`. The query's time budget is at most what
+        is left of ``deadline``; :class:`~mal_planner.errors.TimeLimitReached` when that cut it short."""
         import ompl.base as ob
         import ompl.geometric as og
         import ompl.util as ou
 
+        deadline = deadline or NO_DEADLINE
+        deadline.check()
         start, goal = require_free_endpoints(checker, self.spec, start, goal)
         ou.setLogLevel(ou.LOG_NONE)  # setSeed reports an error once sampling has started; it still reseeds
         ou.RNG.setSeed(int(rng.integers(1, 2**31 - 1)))
@@ -111,7 +116,8 @@ class OmplPlanner(SmoothedSearch):
         ss.setOptimizationObjective(ob.PathLengthOptimizationObjective(si))
 
         polls = [0]
-        deadline = time.perf_counter() + self.time_limit
+        budget_s = min(self.time_limit, deadline.remaining())
+        ends = time.perf_counter() + budget_s
         # Anytime planners report their solution only when solve() returns: run them in rounds of
         # max_iterations polls (each solve() continues the same tree) until one has an exact solution.
         budget = self.max_iterations if self.name in _ANYTIME else self.iteration_cap
@@ -119,21 +125,22 @@ class OmplPlanner(SmoothedSearch):
 
         def stop() -> bool:
             polls[0] += 1
-            return polls[0] >= min(limit[0], self.iteration_cap) or time.perf_counter() > deadline
+            return polls[0] >= min(limit[0], self.iteration_cap) or time.perf_counter() > ends
 
         status = None
         if self.name in _THREADED:  # OMPL's own timed condition: no Python call from the planner's threads
-            while not ss.haveExactSolutionPath() and time.perf_counter() <= deadline:
-                status = ss.solve(ob.timedPlannerTerminationCondition(min(0.2, self.time_limit)))
+            while not ss.haveExactSolutionPath() and time.perf_counter() <= ends:
+                status = ss.solve(ob.timedPlannerTerminationCondition(min(0.2, budget_s)))
                 polls[0] += 1
         while (self.name not in _THREADED and polls[0] < self.iteration_cap
-               and time.perf_counter() <= deadline):
+               and time.perf_counter() <= ends):
             limit[0] = polls[0] + budget
             status = ss.solve(ob.PlannerTerminationCondition(stop))
             if ss.haveExactSolutionPath():
                 break
         self.last_iterations = polls[0]
         if not ss.haveExactSolutionPath():
+            deadline.check()  # the plan's time limit, not the planner, ended the query
             raise PlanningFailed(
                 f"{self.spec}: no path from {np.round(start, 3).tolist()} to {np.round(goal, 3).tolist()} "
                 f"({status}, {polls[0]} iterations)"

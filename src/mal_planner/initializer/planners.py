@@ -13,11 +13,17 @@ from typing import Any, Protocol, runtime_checkable
 
 import numpy as np
 
+from mal_planner.errors import TimeLimitReached
 from mal_planner.initializer.collision import CollisionChecker
 
 
 class PlanningFailed(RuntimeError):
     """No obstacle-free path was found; ``str()`` is one line."""
+
+
+class InitializerTimeout(TimeLimitReached, PlanningFailed):
+    """The plan's time limit ran out in the initializer: a :class:`PlanningFailed` for callers that catch the
+    initializer's failures, classed ``timeout``; ``str()`` names the stage and how far it got."""
 
 
 def require_free_endpoints(checker: CollisionChecker, spec: str, start: np.ndarray, goal: np.ndarray

@@ -30,16 +30,25 @@ import logging
 import math
 import time
 import zlib
-from collections.abc import Sequence
+from collections.abc import Iterator, Sequence
+from contextlib import contextmanager
 from dataclasses import dataclass, field, replace
 
 import numpy as np
 
+from mal_planner.deadline import NO_DEADLINE, Deadline
 from mal_planner.dynamics import DynamicsModel
+from mal_planner.errors import TimeLimitReached
 from mal_planner.initializer.approach import Approach, approach_for
 from mal_planner.initializer.collision import CollisionChecker
 from mal_planner.initializer.frame import RunwayFrame
-from mal_planner.initializer.planners import PathPlanner, PlanningFailed, make_planner, path_length
+from mal_planner.initializer.planners import (
+    InitializerTimeout,
+    PathPlanner,
+    PlanningFailed,
+    make_planner,
+    path_length,
+)
 from mal_planner.initializer.schedule import DEFAULT_MARGIN_TURN_TIMES, LandingSchedule, make_schedule
 from mal_planner.initializer.smoothing import SmoothedSearch, greedy_shortcut, remove_repeats, smooth_path
 from mal_planner.initializer.timing import dubins_path_length, earliest_landing_times
@@ -194,7 +203,9 @@ class Sequencer:
     brackets). ``runs_per_aircraft``: planner runs for each aircraft's shortest path; ``lattice_radii``: the
     waypoint lattice (0.01 nm); ``max_waypoint_draws``: lattice draws per aircraft before giving up;
     ``checker_margin`` / ``gate_band_radii`` (0.01 nm) / ``gate_margin_radii`` (0.005 nm): the collision
-    checker's options.
+    checker's options. A ``deadline`` given to :meth:`plan` or :meth:`replan_one` is checked before every aircraft,
+    every waypoint candidate and in the planner's loop; when it runs out they raise :class:`InitializerTimeout`
+    naming the stage.
     """
 
     planner: str | PathPlanner = "multi-rrt"
@@ -221,19 +232,50 @@ class Sequencer:
             self._planner = self.planner
         if self.runs_per_aircraft < 1 or self.lattice_radii <= 0:
             raise ValueError("runs_per_aircraft must be >= 1 and lattice_radii > 0")
+        self._deadline = NO_DEADLINE
+        self._where = ""
+        """The stage the current query is in, for the time limit's message."""
 
-    def plan(self, scenario: Scenario, seed: int | None = None) -> InitialPlan:
-        """Initial trajectories of all aircraft; raises :class:`PlanningFailed`."""
+    @property
+    def _name(self) -> str:
+        return getattr(self._planner, "spec", type(self._planner).__name__)
+
+    def plan(self, scenario: Scenario, seed: int | None = None, deadline: Deadline | None = None) -> InitialPlan:
+        """Initial trajectories of all aircraft; raises :class:`PlanningFailed` (:class:`InitializerTimeout` when
+        ``deadline`` runs out)."""
         frame = RunwayFrame.of(scenario)
-        plan = self._plan(frame.scenario(scenario), seed)
+        with self._bounded(deadline):
+            plan = self._plan(frame.scenario(scenario), seed)
         return replace(plan, trajectories=tuple(tr.to_world(frame) for tr in plan.trajectories))
+
+    @contextmanager
+    def _bounded(self, deadline: Deadline | None) -> Iterator[None]:
+        """Run one query under ``deadline``: its time limit reached anywhere inside becomes
+        :class:`InitializerTimeout` naming the stage (:attr:`_where`)."""
+        self._deadline, self._where = deadline or NO_DEADLINE, "start"
+        try:
+            yield
+        except TimeLimitReached as exc:
+            if isinstance(exc, InitializerTimeout):
+                raise
+            raise InitializerTimeout(f"{exc} in the initializer ({self._where})") from None
+        finally:
+            self._deadline = NO_DEADLINE
 
     def replan_one(self, scenario: Scenario, callsign: str, landing_time: float,
                    traffic: Sequence[tuple[np.ndarray, np.ndarray]], seed: int | None = None,
-                   order: int = 1) -> InitialTrajectory:
+                   order: int = 1, deadline: Deadline | None = None) -> InitialTrajectory:
         """A new initial path of one aircraft for ``landing_time`` that keeps clear of ``traffic`` (the times and
         positions of aircraft planned already, in the world): the sequential optimizer's first recovery when an
         aircraft finds no plan against the plans of those before it."""
+        with self._bounded(deadline):
+            self._where = f"new {self._name} path of aircraft {callsign}"
+            return self._replan_one(scenario, callsign, landing_time, traffic, seed, order)
+
+    def _replan_one(self, scenario: Scenario, callsign: str, landing_time: float,
+                    traffic: Sequence[tuple[np.ndarray, np.ndarray]], seed: int | None, order: int
+                    ) -> InitialTrajectory:
+        """:meth:`replan_one` without the deadline's wrapping."""
         frame = RunwayFrame.of(scenario)
         local = frame.scenario(scenario)
         ac = local.aircraft_by_callsign(callsign)
@@ -258,7 +300,10 @@ class Sequencer:
         timings: dict[str, float] = {}
         direct: dict[str, np.ndarray] = {}
         routes: dict[str, Approach] = {}
-        for ac in scenario.aircraft:
+        n = len(scenario.aircraft)
+        for i, ac in enumerate(scenario.aircraft):
+            self._where = f"{self._name} path of aircraft {ac.callsign}, {i} of {n} planned"
+            self._deadline.check()
             t0 = time.perf_counter()
             rng = rngs[ac.callsign]
             routes[ac.callsign] = route = approach_for(scenario, ac, checker)
@@ -267,6 +312,8 @@ class Sequencer:
             timings[ac.callsign] = time.perf_counter() - t0
             log.info("%s: shortest path %.3f nm (%d points)", ac.callsign, path_length(direct[ac.callsign]),
                      len(direct[ac.callsign]))
+        self._where = f"landing schedule, {n} of {n} planned"
+        self._deadline.check()
         schedule = make_schedule(scenario, earliest_landing_times(scenario, direct),
                                  scales.seconds(self.landing_margin_turn_times))
         log.info("schedule: %s", ", ".join(f"{cs} {schedule.times[cs]:.1f} s" for cs in schedule.order))
@@ -274,6 +321,8 @@ class Sequencer:
         traffic: list[tuple[np.ndarray, np.ndarray]] = []  # the timed paths of the aircraft stretched before
         for k, cs in enumerate(schedule.order, start=1):
             ac = scenario.aircraft_by_callsign(cs)
+            self._where = f"sequencing waypoint of aircraft {cs}, {k - 1} of {n} sequenced"
+            self._deadline.check()
             t0 = time.perf_counter()
             path, wp = self._stretch(scenario, checker, ac, routes[cs], direct[cs], schedule.times[cs], rngs[cs],
                                      scales, traffic)
@@ -294,7 +343,7 @@ class Sequencer:
         errors = []
         for _ in range(self.runs_per_aircraft):
             try:
-                path = self._planner.plan(checker, start, goal, rng)
+                path = self._path(checker, start, goal, rng)
             except PlanningFailed as exc:
                 errors.append(str(exc))
                 continue
@@ -309,7 +358,15 @@ class Sequencer:
         """A candidate leg: the planner's path with the greedy shortcut only (the random shortcuts, about 40 %
         of a terminal area's initializer time, are for the path that is kept; see :meth:`_polish`)."""
         if isinstance(self._planner, SmoothedSearch):
-            return greedy_shortcut(checker, self._planner.search(checker, start, goal, rng))
+            return greedy_shortcut(checker, self._planner.search(checker, start, goal, rng, self._deadline))
+        return self._path(checker, start, goal, rng)
+
+    def _path(self, checker: CollisionChecker, start: np.ndarray, goal: np.ndarray,
+              rng: np.random.Generator) -> np.ndarray:
+        """The planner's path, its search bounded by the deadline (checked before a planner that takes none)."""
+        self._deadline.check()
+        if isinstance(self._planner, SmoothedSearch):
+            return self._planner.plan(checker, start, goal, rng, self._deadline)
         return self._planner.plan(checker, start, goal, rng)
 
     def _polish(self, checker: CollisionChecker, path: np.ndarray, rng: np.random.Generator) -> np.ndarray:
@@ -333,7 +390,7 @@ class Sequencer:
         gate's exit to the final approach fix, past a no-fly zone) is planned."""
         parts = [np.asarray(to_route, float)]
         for a, b in itertools.pairwise(route.points):
-            parts.append(np.array([b]) if checker.segment_free(a, b) else self._planner.plan(checker, a, b, rng)[1:])
+            parts.append(np.array([b]) if checker.segment_free(a, b) else self._path(checker, a, b, rng)[1:])
         return remove_repeats(np.vstack(parts))
 
     def _stretch(self, scenario: Scenario, checker: CollisionChecker, ac: Aircraft, route: Approach,
@@ -399,6 +456,7 @@ class Sequencer:
         for first in range(0, self.max_waypoint_draws, WAYPOINT_BATCH):
             if done or planned >= self.max_waypoint_plans:
                 break
+            self._deadline.check()
             strict = planned < self.max_waypoint_plans // 2 and first < self.max_waypoint_draws // 2
             keys = _waypoint_keys(rng, WAYPOINT_BATCH, first, start, goal, target - tail, scenario.airspace, res,
                                   lo_i, hi_i)
@@ -424,6 +482,7 @@ class Sequencer:
                         best is not None and best[0][0] == 0.0 and planned >= self.max_waypoint_plans // 4):
                     done = True  # one in the window, only not clear of the traffic: the optimizer separates them
                     break
+                self._deadline.check()
                 try:
                     planned += 1
                     leg1 = self._quick_plan(checker, start, wp, rng)
@@ -520,6 +579,6 @@ def _proxy_positions(start: np.ndarray, wps: np.ndarray, goal: np.ndarray, route
 
 
 def plan_initial(scenario: Scenario, planner: str | PathPlanner = "multi-rrt", seed: int | None = None,
-                 **options) -> InitialPlan:
-    """Convenience: ``Sequencer(planner, **options).plan(scenario, seed)``."""
-    return Sequencer(planner, **options).plan(scenario, seed)
+                 deadline: Deadline | None = None, **options) -> InitialPlan:
+    """Convenience: ``Sequencer(planner, **options).plan(scenario, seed, deadline)``."""
+    return Sequencer(planner, **options).plan(scenario, seed, deadline)

@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from mal_planner.deadline import Deadline
 from mal_planner.initializer.collision import CollisionChecker
 
 
@@ -83,15 +84,18 @@ def smooth_path(
 
 
 class SmoothedSearch:
-    """Mixin for planners: :meth:`plan` = the planner's raw ``search`` path, then shortcut smoothing."""
+    """Mixin for planners: :meth:`plan` = the planner's raw ``search`` path, then shortcut smoothing.
+
+    ``deadline``: the plan's time limit, checked in the search's loop (raises
+    :class:`~mal_planner.errors.TimeLimitReached`); None: no limit."""
 
     smooth_rounds: int
 
     def search(self, checker: CollisionChecker, start: np.ndarray, goal: np.ndarray,
-               rng: np.random.Generator) -> np.ndarray:
+               rng: np.random.Generator, deadline: Deadline | None = None) -> np.ndarray:
         raise NotImplementedError
 
     def plan(self, checker: CollisionChecker, start: np.ndarray, goal: np.ndarray,
-             rng: np.random.Generator) -> np.ndarray:
+             rng: np.random.Generator, deadline: Deadline | None = None) -> np.ndarray:
         """The raw path from start to goal, smoothed; raises ``PlanningFailed``."""
-        return smooth_path(checker, self.search(checker, start, goal, rng), rng, self.smooth_rounds)
+        return smooth_path(checker, self.search(checker, start, goal, rng, deadline), rng, self.smooth_rounds)
