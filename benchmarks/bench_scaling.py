@@ -67,11 +67,15 @@ from dataclasses import asdict, dataclass
 from pathlib import Path
 from typing import Any
 
+from mal_planner.errors import OUTCOMES
+
 REPO = Path(__file__).resolve().parents[1]
 BIN = Path(sys.executable).parent
 THESIS = REPO / "scenarios" / "thesis.yaml"
 NAIVE = Path(__file__).resolve().parent / "naive_reference.py"
-EXIT_MEANING = {0: "verified", 1: "no plan", 2: "bad input", 3: "verification failed", 4: "time limit"}
+EXIT_MEANING = {code: " / ".join(o.name for o in OUTCOMES if o.exit_code == code)
+                for code in {o.exit_code for o in OUTCOMES}}
+"""mal-plan's exit codes (mal_planner.errors.OUTCOMES)."""
 
 
 # ---------------------------------------------------------------------------------------------- processes

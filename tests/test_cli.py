@@ -34,6 +34,7 @@ def test_full_run_reproduces_the_thesis(tmp_path: Path, capsys) -> None:
     assert "verified" in out and "NOT verified" not in out
     doc = json.loads((tmp_path / "plan.json").read_text())
     assert doc["status"] == "optimal" and doc["verified"] is True
+    assert doc["outcome"] == {"name": "success", "reason": "", "error_code": 0, "exit_code": 0}
     assert doc["optimizer"]["mesh_iterations"][-1]["max_error"] <= 1e-5  # the default mesh tolerance
     traj = doc["aircraft"][0]["trajectory"]
     assert {"n_h", "n_v", "phase"} <= set(traj) and len(traj["t"]) == len(traj["n_h"])

@@ -112,14 +112,14 @@ def test_node_reports_the_initializer_timeout_as_a_failed_plan(thesis) -> None:
     from mal_planner.ros.planner_node import PlanJob, PlannerNode
 
     options = PlanOptions(seed=0, time_limit_s=1e-6)
-    failed: list[str] = []
+    failed: list[tuple[str, str | None]] = []
     node = SimpleNamespace(
         _inputs=lambda job: PlanInputs(thesis, 0.0, {}), _plan_options=lambda: options, planner=Planner(options),
-        _current=None, _failed=lambda job, inputs, reason, result=None: failed.append(reason) or SimpleNamespace(
-            success=False, message=reason))
+        _current=None, _failed=lambda job, inputs, reason, result=None, failure_class=None: failed.append(
+            (reason, failure_class)) or SimpleNamespace(success=False, message=reason))
     outcome = PlannerNode._plan(node, PlanJob(["test"]))  # type: ignore[arg-type]
     assert not outcome.success
-    assert failed == [outcome.message]
+    assert failed == [(outcome.message, "timeout")]  # error code 6 in the service response and diagnostics
     assert outcome.message.startswith("planning failed: time limit 1e-06 s reached in the initializer ("), failed
 
 

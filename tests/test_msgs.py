@@ -53,7 +53,8 @@ def test_dds_names_fields_and_constants() -> None:
     assert srv.WireRequest.__idl_typename__ == "mal_msgs::srv::dds_::PlanLanding_Request_"
     assert srv.WireResponse.__idl_typename__ == "mal_msgs::srv::dds_::PlanLanding_Response_"
     assert list(srv.WireRequest.__dataclass_fields__) == ["rmw_guid", "rmw_seq", "aircraft"]
-    assert list(srv.Response.__dataclass_fields__) == ["success", "message", "plan", "paths"]
+    assert list(srv.Response.__dataclass_fields__) == ["success", "error_code", "message", "plan", "paths"]
+    assert (srv.Response.ERROR_NONE, srv.Response.ERROR_TIMEOUT) == (0, 6)
     gid = m.get_type("rmw_dds_common/msg/Gid")()
     assert gid.data == bytes(16)  # Jazzy: char[16]
     assert m.get_type("geometry_msgs/msg/Quaternion")().w == 1.0
@@ -182,3 +183,15 @@ def test_vendored_interfaces_are_parsed_from_their_files() -> None:
     req, res = m.get_service("rcl_interfaces/srv/SetParameters")
     assert res().results == [] and req().parameters == []
     assert m.get_type("rcl_interfaces/msg/ParameterType").PARAMETER_DOUBLE == 3
+
+
+def test_plan_landing_error_codes_are_the_outcome_table() -> None:
+    """One table of outcomes (mal_planner.errors.OUTCOMES): the service's ERROR_* constants say the same."""
+    import re
+
+    from mal_planner.errors import OUTCOMES
+
+    text = (m.interface_dir() / "srv" / "PlanLanding.srv").read_text()
+    constants = {name.lower(): int(value) for name, value in re.findall(r"^uint16 ERROR_(\w+)=(\d+)$", text, re.M)}
+    assert constants == {("none" if o.name == "success" else o.name): o.error_code for o in OUTCOMES}
+    assert sorted(o.error_code for o in OUTCOMES) == list(range(len(OUTCOMES)))

@@ -144,6 +144,7 @@ states = [planner_to_aircraft_state(node.types, a.callsign, stamp, extrapolate(a
 Srv = node.types.srv("mal_msgs/srv/PlanLanding")
 res = landing.call(Srv.Request(aircraft=states), timeout_sec=150)
 print("LANDING " + json.dumps({"success": res.success, "message": res.message, "n_paths": len(res.paths),
+      "error_code": res.error_code, "ERROR_NONE": Srv.Response.ERROR_NONE,
       "plan_stamp": msg_to_time(res.plan), "order": [a.callsign for a in res.plan.aircraft],
       "first_pose_stamp": msg_to_time(res.paths[0].poses[0]) if res.paths else None}), flush=True)
 """
@@ -327,6 +328,7 @@ def test_replay_to_paths_services_and_latched(backend_snippet, snippet, tmp_path
         landing = json.loads(client.wait_for_line("LANDING ", 150)[len("LANDING "):])
         assert landing["success"], landing
         assert landing["n_paths"] == 2 and sorted(landing["order"]) == ["A1", "A3"]
+        assert landing["error_code"] == landing["ERROR_NONE"] == 0
         assert landing["plan_stamp"] == pytest.approx(BAG_T0 + 30.0)
         assert landing["first_pose_stamp"] == pytest.approx(BAG_T0 + 30.0)
 

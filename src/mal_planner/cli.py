@@ -12,16 +12,11 @@ import time
 from dataclasses import replace
 from pathlib import Path
 
+from mal_planner.errors import exit_codes_help, outcome_code
 from mal_planner.landing import LandingOptions
 from mal_planner.scenario import ScenarioError, load_scenario
 
-EXIT_CODES = """exit codes:
-  0  a verified plan (or, with --initial-only, the initial trajectories)
-  1  the initializer or the optimizer found no plan
-  2  bad input or an impossible request (one line on stderr, before any planning)
-  3  the optimizer succeeded but the plan failed the independent verification
-  4  the time limit (--time-limit) ran out before a verified plan
-"""
+EXIT_CODES = exit_codes_help()
 
 
 def _positive_float(text: str) -> float:
@@ -97,12 +92,12 @@ def main(argv: list[str] | None = None) -> int:
         scenario = load_scenario(args.scenario)
     except ScenarioError as exc:
         print(f"mal-plan: error: {exc}", file=sys.stderr)
-        return 2
+        return outcome_code("invalid_input").exit_code
     out_dir = args.out or Path("out") / scenario.name
     problem = _unwritable(out_dir)
     if problem:
         print(f"mal-plan: error: --out {out_dir}: {problem}", file=sys.stderr)
-        return 2
+        return outcome_code("invalid_input").exit_code
     if args.seed == -1:
         args.seed = secrets.randbelow(2**31)
         print(f"mal-plan: random seed {args.seed}", file=sys.stderr)
@@ -115,7 +110,7 @@ def main(argv: list[str] | None = None) -> int:
     if args.initializer not in known_specs():
         print(f"mal-plan: error: --initializer: unknown planner {args.initializer!r} "
               f"(known: {', '.join(known_specs())})", file=sys.stderr)
-        return 2
+        return outcome_code("invalid_input").exit_code
     landing = replace(LandingOptions(), guess=args.guess, fixed_landing_times=not args.free_landing_times,
                       mesh_tol=args.mesh_tol, refine=not args.no_refine, strategy=args.strategy)
     options = PlanOptions(initializer=args.initializer, seed=args.seed, optimize=not args.initial_only,
@@ -126,13 +121,13 @@ def main(argv: list[str] | None = None) -> int:
         result = Planner(options).plan(scenario, reuse=False)
     except InfeasibleRequest as exc:
         print(f"mal-plan: error: {args.scenario}: impossible request: {exc}", file=sys.stderr)
-        return 2
+        return outcome_code(exc.failure_class).exit_code
     except TimeLimitReached as exc:  # in the initializer: nothing to write yet
         print(f"mal-plan: timeout: {args.scenario}: {exc}", file=sys.stderr)
-        return 4
+        return outcome_code(exc.failure_class).exit_code
     except PlanningFailed as exc:
         print(f"mal-plan: error: {args.scenario}: initializer failed: {exc}", file=sys.stderr)
-        return 1
+        return outcome_code("initializer_failed").exit_code
     written = write_outputs(result, out_dir, figures="none")
     print(f"{scenario.name}: {len(scenario.aircraft)} aircraft, landing order {' -> '.join(result.order)} "
           f"({time.perf_counter() - t0:.1f} s)")
@@ -144,7 +139,7 @@ def main(argv: list[str] | None = None) -> int:
     if failure is None:
         return 0
     print(f"mal-plan: {failure[0].replace('_', ' ')}: {failure[1]}", file=sys.stderr)
-    return {"timeout": 4, "verification_failed": 3}.get(failure[0], 1)
+    return outcome_code(failure[0]).exit_code
 
 
 def _unwritable(folder: Path) -> str | None:

@@ -12,6 +12,7 @@ from pathlib import Path
 
 import numpy as np
 
+from mal_planner.errors import outcome_code
 from mal_planner.pipeline import PlanResult
 from mal_planner.scenario import Scenario
 from mal_planner.units import nm_per_s_to_kt, nm_to_ft
@@ -88,6 +89,14 @@ def _sequence(result: PlanResult) -> dict | None:
             "aircraft": rows}
 
 
+def _outcome(result: PlanResult) -> dict:
+    """How the plan ended, as every interface reports it (:data:`mal_planner.errors.OUTCOMES`)."""
+    failure = result.failure
+    code = outcome_code(failure[0] if failure else None)
+    return {"name": code.name, "reason": failure[1] if failure else "", "error_code": code.error_code,
+            "exit_code": code.exit_code}
+
+
 def result_to_dict(result: PlanResult) -> dict:
     """The JSON document (planner units: nm, s, rad)."""
     initial = result.initial
@@ -121,6 +130,7 @@ def result_to_dict(result: PlanResult) -> dict:
         "scenario": _scenario(result),
         "status": status,
         "verified": bool(result.verification.verified) if result.verification else False,
+        "outcome": _outcome(result),
         "landing_order": result.order,
         "sequence": _sequence(result),
         "initializer": {"planner": initial.planner, "seed": initial.seed, "timings_s": initial.timings,

@@ -27,7 +27,9 @@ from typing import Any
 
 import numpy as np
 
+from mal_planner.campaign.outcome import classify
 from mal_planner.dynamics import bank_angle
+from mal_planner.errors import outcome_code
 from mal_planner.pipeline import Planner, PlanOptions, PlanResult
 from mal_planner.ros.convert import (
     aircraft_state_to_planner,
@@ -81,6 +83,12 @@ class PlanOutcome:
     plan_msg: Any = None
     path_msgs: list[Any] = field(default_factory=list)
     result: PlanResult | None = None
+    failure_class: str | None = None
+    """None, or why the plan failed or is not verified (mal_planner.errors.OUTCOMES)."""
+
+    @property
+    def error_code(self) -> int:
+        return outcome_code(self.failure_class).error_code
 
 
 @dataclass(frozen=True)
@@ -392,7 +400,7 @@ class PlannerNode:
         future: Future[PlanOutcome] = Future()
         with self._lock:
             if self._stop:
-                future.set_result(PlanOutcome(False, "planner is shutting down"))
+                future.set_result(PlanOutcome(False, "planner is shutting down", failure_class="crash"))
                 return future
             if explicit is not None:
                 self._explicit.append(PlanJob([reason], explicit, [future]))
@@ -422,7 +430,7 @@ class PlannerNode:
                 outcome = self._plan(job)
             except Exception as exc:  # never let the worker die
                 log.exception("planning failed")
-                outcome = PlanOutcome(False, f"planning failed: {exc}")
+                outcome = PlanOutcome(False, f"planning failed: {exc}", failure_class="crash")
             with self._lock:
                 self._busy = False
                 self._last_done = self._clock()
@@ -460,7 +468,7 @@ class PlannerNode:
         inputs = self._inputs(job)
         if isinstance(inputs, str):
             log.warning("no plan: %s", inputs)
-            return PlanOutcome(False, inputs)
+            return PlanOutcome(False, inputs, failure_class="infeasible_request")
         sc = inputs.scenario
         log.info("planning (%s): %d aircraft [%s] from t=%.3f", "; ".join(job.reasons), len(sc.aircraft),
                  ", ".join(a.callsign for a in sc.aircraft), inputs.plan_start)
@@ -478,11 +486,13 @@ class PlannerNode:
             result = planner.plan(sc, reuse=not explicit, start_time=inputs.plan_start)
         except Exception as exc:
             log.debug("planning failed", exc_info=True)
-            return self._failed(job, inputs, f"planning failed: {' '.join(str(exc).split()) or type(exc).__name__}")
+            return self._failed(job, inputs, f"planning failed: {' '.join(str(exc).split()) or type(exc).__name__}",
+                                failure_class=classify(error=exc).failure_class)
         failure = result.failure if self.params.optimize else None
         if failure is not None and (explicit or self._current is not None):
             # Neither an unoptimized nor an unverified plan replaces the plan that is being followed.
-            return self._failed(job, inputs, f"{failure[0].replace('_', ' ')}: {failure[1]}", result)
+            return self._failed(job, inputs, f"{failure[0].replace('_', ' ')}: {failure[1]}", result,
+                                failure_class=failure[0])
         t_plan = time.perf_counter() - t0
         if explicit:  # answered in the response only: the radar plan others follow stays published
             plan_msg = self._landing_plan_msg(result, inputs.plan_start, result.order, inputs.left_out)
@@ -498,10 +508,11 @@ class PlannerNode:
         log.info("%s: %s; %s; planned in %.2f s (%s), published in %.2f s, outputs in %.2f s%s",
                  "what-if plan (answered, not published)" if explicit else f"plan #{self._plans}", summary,
                  self._status_text(result), t_plan, timings, t_pub, t_out, f" -> {self.out_dir}" if outputs else "")
-        return PlanOutcome(True, f"{self._status_text(result)}: {summary}", plan_msg, path_msgs, result)
+        return PlanOutcome(True, f"{self._status_text(result)}: {summary}", plan_msg, path_msgs, result,
+                           failure_class=failure[0] if failure is not None else None)
 
-    def _failed(self, job: PlanJob, inputs: PlanInputs, reason: str, result: PlanResult | None = None
-                ) -> PlanOutcome:
+    def _failed(self, job: PlanJob, inputs: PlanInputs, reason: str, result: PlanResult | None = None,
+                failure_class: str | None = "crash") -> PlanOutcome:
         """A failed plan: the last good plan stays published (latched paths and landing_plan); a radar plan
         publishes FAILED diagnostics with the reason and drops the planner's warm-start state, so that the
         next trigger plans from scratch. The response carries the reason and FAILED entries."""
@@ -509,7 +520,8 @@ class PlannerNode:
         plan = self._landing_plan_msg(None, inputs.plan_start, callsigns, inputs.left_out, reason)
         if job.explicit is None:
             cur = self._current
-            extra: dict[str, Any] = {"failure": reason}
+            extra: dict[str, Any] = {"failure": reason, "failure_class": failure_class,
+                                     "error_code": outcome_code(failure_class).error_code}
             if cur is not None:
                 age = inputs.plan_start - cur.plan_start
                 reason += f"; keeping the last plan ({age:.1f} s old)"
@@ -524,7 +536,7 @@ class PlannerNode:
         else:
             log.error("what-if plan failed: %s", reason)
         paths = list(self._path_msgs(result, inputs.plan_start).values()) if result is not None else []
-        return PlanOutcome(False, reason, plan, paths, result)
+        return PlanOutcome(False, reason, plan, paths, result, failure_class=failure_class)
 
     @staticmethod
     def _status_text(result: PlanResult) -> str:
@@ -716,6 +728,9 @@ class PlannerNode:
             lr, rep = result.landing, result.verification
             if not failed:
                 level = DIAG_OK if result.optimized and rep is not None and rep.verified else DIAG_WARN
+            failure = result.failure
+            values |= {"failure_class": failure[0] if failure else "",
+                       "error_code": outcome_code(failure[0] if failure else None).error_code}
             values |= {"order": ",".join(result.order), "solver_status": lr.status if lr else "not run",
                        "solve_time_s": f"{lr.solve_time:.3f}" if lr else "nan",
                        "nlp_iterations": lr.nlp_iterations if lr else 0, "verified": bool(rep and rep.verified),
@@ -774,7 +789,7 @@ class PlannerNode:
         try:
             return future.result(timeout=self.params.service_timeout_s)
         except TimeoutError:
-            return PlanOutcome(False, f"no plan within {self.params.service_timeout_s:.0f} s")
+            return PlanOutcome(False, f"no plan within {self.params.service_timeout_s:.0f} s", failure_class="timeout")
 
     def _srv_trigger(self, request: Any, response: Any) -> Any:
         del request
@@ -798,7 +813,7 @@ class PlannerNode:
             if reason is None and callsign in explicit:
                 reason = "duplicate callsign"
             if reason is not None:
-                response.success = False
+                response.success, response.error_code = False, outcome_code("invalid_input").error_code
                 response.message = f"aircraft[{i}] ({callsign}): {reason}"
                 log.error("plan_landing request rejected: %s", response.message)
                 return response
@@ -809,9 +824,11 @@ class PlannerNode:
             future = self.request("plan_landing service (radar tracks)")
         else:
             response.success, response.message = False, "no aircraft given and no radar tracks yet"
+            response.error_code = outcome_code("invalid_input").error_code
             return response
         outcome = self._wait(future)
         response.success, response.message = outcome.success, outcome.message
+        response.error_code = outcome.error_code
         if outcome.plan_msg is not None:
             response.plan = outcome.plan_msg
         response.paths = list(outcome.path_msgs)
@@ -839,7 +856,7 @@ class PlannerNode:
         for job in jobs:
             for fut in job.waiters:
                 if not fut.done():
-                    fut.set_result(PlanOutcome(False, "planner is shutting down"))
+                    fut.set_result(PlanOutcome(False, "planner is shutting down", failure_class="crash"))
         self.node.shutdown()
         self._worker.join(timeout=1.0)
 
