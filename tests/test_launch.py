@@ -168,21 +168,87 @@ def test_launch_sigkill_leaves_no_orphans(dds_env: dict[str, str], tmp_path: Pat
     open_reader(out / "bag").close()
 
 
-def test_launch_reports_a_child_killed_by_a_signal(dds_env: dict[str, str], tmp_path: Path) -> None:  # noqa: F811
-    """The planner stopped by SIGTERM from outside: the launcher says so (signal by name) and exits non-zero."""
+def _planners(launcher: int) -> list[int]:
+    """The launcher's planner children."""
+    return [pid for pid in _children(launcher) if "planner_node" in Path(f"/proc/{pid}/cmdline").read_text()]
+
+
+@pytest.mark.parametrize("sig", [signal.SIGTERM, signal.SIGKILL], ids=["SIGTERM", "SIGKILL"])
+def test_launch_reports_a_child_killed_by_a_signal(dds_env: dict[str, str], tmp_path: Path,  # noqa: F811
+                                                   sig: signal.Signals) -> None:
+    """The planner stopped by a signal from outside, without --respawn: the launcher says so (signal by name),
+    does not start it again and exits non-zero."""
     proc = _launch(dds_env, tmp_path, "--simulate", "--out", str(tmp_path / "out"))
     try:
         _wait_lines(proc, "planner ready", "[radar_sim]")
-        planner = [pid for pid in _children(proc.pid) if "planner_node" in Path(f"/proc/{pid}/cmdline").read_text()]
+        planner = _planners(proc.pid)
         assert len(planner) == 1
-        os.kill(planner[0], signal.SIGTERM)
+        os.kill(planner[0], sig)
         lines = _wait_lines(proc, "launch: FAILED", timeout=30)
+        assert proc.wait(timeout=60) == 1
+        assert proc.stdout is not None
+        lines += proc.stdout.read().splitlines()
+    finally:
+        if proc.poll() is None:
+            proc.kill()
+            proc.wait()
+    assert f"launch: FAILED: planner killed by {sig.name} (exit -{sig.value})" in lines
+    assert not any("respawn" in line or "planner ready" in line for line in lines)
+
+
+def test_launch_respawns_a_killed_planner(backend_env: dict[str, str], tmp_path: Path) -> None:
+    """On each backend, --respawn: the planner SIGKILLed after its first plan comes back as another process (its
+    duplicate probe not fooled by the dead one) and plans again from the radar; killed again with no respawn left,
+    the launch ends reporting it. The recorder's one bag holds radar and plans from before and after the kill."""
+    out = tmp_path / "out"
+    proc = _launch(backend_env, tmp_path, "--simulate", "--respawn", "--respawn-delay", "0.5", "--respawn-max", "1",
+                   "--out", str(out))
+    try:
+        _wait_lines(proc, "]: plan #1:", timeout=120)
+        old = _planners(proc.pid)
+        assert len(old) == 1
+        os.kill(old[0], signal.SIGKILL)
+        lines = _wait_lines(proc, "launch: planner killed by SIGKILL (exit -9): respawned as pid", timeout=30)
+        respawned_ns = time.time_ns()
+        assert lines[-1].endswith("after 0.5 s (attempt 1 of 1)")
+        new = int(lines[-1].split("respawned as pid ")[1].split()[0])
+        assert new != old[0] and _planners(proc.pid) == [new]
+        lines += _wait_lines(proc, "]: plan #1:", timeout=120)  # the new planner's first plan
+        replanned_ns = time.time_ns()
+        os.kill(new, signal.SIGKILL)
+        lines += _wait_lines(proc, "launch: FAILED", timeout=30)
         assert proc.wait(timeout=60) == 1
     finally:
         if proc.poll() is None:
             proc.kill()
             proc.wait()
-    assert "launch: FAILED: planner killed by SIGTERM (exit -15)" in lines
+    assert "launch: FAILED: planner killed by SIGKILL (exit -9) (respawned 1 time(s))" in lines
+    from mal_planner.ros.bagio import open_reader
+
+    assert sorted(p.name for p in out.iterdir() if p.name.startswith("bag")) == ["bag"]
+    reader = open_reader(out / "bag")
+    try:
+        stamps: dict[str, list[int]] = {}
+        for conn, t, _raw in reader.messages():
+            stamps.setdefault(conn.topic, []).append(t)
+    finally:
+        reader.close()
+    for topic in ("/radar/tracks", "/landing_plan"):
+        assert min(stamps[topic]) < respawned_ns < max(stamps[topic]) < replanned_ns + 10**9, topic
+
+
+@pytest.mark.parametrize("bad", [["--respawn-max", "0"], ["--respawn-delay", "-1"]])
+def test_launch_bad_respawn_fails_before_starting(dds_env: dict[str, str], tmp_path: Path,  # noqa: F811
+                                                  bad: list[str]) -> None:
+    """--respawn-max below 1 or a negative --respawn-delay: exit 2, one line naming it, nothing started."""
+    out = tmp_path / "out"
+    proc = subprocess.run([sys.executable, "-m", "mal_planner.ros.launch", "--simulate", "--respawn", *bad, "--out",
+                           str(out)], env=dds_env, cwd=tmp_path, capture_output=True, text=True, timeout=60,
+                          check=False)
+    assert proc.returncode == 2, proc.stdout + proc.stderr
+    lines = proc.stderr.strip().splitlines()
+    assert len(lines) == 1 and lines[0].startswith(f"launch: {bad[0]}: must be"), proc.stderr
+    assert "[planner]" not in proc.stdout and not out.exists()
 
 
 @pytest.mark.parametrize("bad", ["replay", "scenario", "params"])
