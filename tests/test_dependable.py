@@ -171,10 +171,11 @@ def run_cli(*args: str) -> subprocess.CompletedProcess:
 
 
 @pytest.mark.parametrize(("args", "message"), [
-    (["--seed", "-2"], "--seed: must be >= 0, or -1"),
-    (["--mesh-tol", "0"], "--mesh-tol: must be a finite number > 0"),
-    (["--mesh-tol", "nan"], "--mesh-tol: must be a finite number > 0"),
-    (["--time-limit", "-1"], "--time-limit: must be a finite number > 0"),
+    (["--seed", "-2"], "--seed: must be >= -1, got -2"),
+    (["--mesh-tol", "0"], "--mesh-tol: must be > 0, got 0.0"),
+    (["--mesh-tol", "nan"], "--mesh-tol: expected a finite number, got nan"),
+    (["--time-limit", "-1"], "--time-limit: must be > 0, got -1.0"),
+    (["--initializer", "ompl:Nope"], "--initializer: no such planner (known: multi-rrt, ompl:"),
     (["--out", "/proc/no/such"], "cannot create the folder"),
 ])
 def test_cli_bad_options_exit_2_with_one_line(args, message) -> None:

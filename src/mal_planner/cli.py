@@ -4,39 +4,17 @@ from __future__ import annotations
 
 import argparse
 import logging
-import math
 import os
 import secrets
 import sys
 import time
-from dataclasses import replace
 from pathlib import Path
 
 from mal_planner.errors import exit_codes_help, outcome_code
-from mal_planner.landing import LandingOptions
+from mal_planner.options import add_arguments, build_plan_options, check_values, values_from_args
 from mal_planner.scenario import ScenarioError, load_scenario
 
 EXIT_CODES = exit_codes_help()
-
-
-def _positive_float(text: str) -> float:
-    try:
-        value = float(text)
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"not a number: {text!r}") from None
-    if not math.isfinite(value) or value <= 0.0:
-        raise argparse.ArgumentTypeError(f"must be a finite number > 0, got {text!r}")
-    return value
-
-
-def _seed(text: str) -> int:
-    try:
-        value = int(text)
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"not an integer: {text!r}") from None
-    if value < -1:
-        raise argparse.ArgumentTypeError(f"must be >= 0, or -1 for a random seed; got {value}")
-    return value
 
 
 class _Parser(argparse.ArgumentParser):
@@ -53,28 +31,8 @@ def build_parser() -> argparse.ArgumentParser:
         epilog=EXIT_CODES, formatter_class=argparse.RawDescriptionHelpFormatter,
     )
     parser.add_argument("scenario", type=Path, help="scenario YAML file (see README: Scenario files)")
-    parser.add_argument("--initializer", default="multi-rrt",
-                        help="path planner: multi-rrt (thesis), ompl:RRTConnect, ompl:RRT, ompl:RRTstar, ... "
-                             "(default: %(default)s)")
-    parser.add_argument("--seed", type=_seed, default=0,
-                        help="random seed; -1 draws one (it is printed and saved) (default: %(default)s)")
     parser.add_argument("--out", type=Path, default=None, help="output folder (default: out/<scenario name>)")
-    parser.add_argument("--initial-only", action="store_true", help="run the initializer only, no optimization")
-    parser.add_argument("--guess", choices=["initializer", "straight"], default="initializer",
-                        help="optimizer initial guess: the initializer's paths or naive straight lines")
-    parser.add_argument("--free-landing-times", action="store_true",
-                        help="let the optimizer choose landing times (minimum spacing from the scenario)")
-    parser.add_argument("--strategy", choices=["auto", "joint", "sequential"], default="auto",
-                        help="one NLP for all aircraft (joint) or one per aircraft in landing order against the "
-                             "plans of those before it (sequential); auto: sequential from 4 aircraft on "
-                             "(default: auto)")
-    parser.add_argument("--mesh-tol", type=_positive_float, default=1e-5,
-                        help="mesh error tolerance (default: %(default)s)")
-    parser.add_argument("--no-refine", action="store_true",
-                        help="solve on the initial mesh only (no hp refinement, no verification-driven refinement)")
-    parser.add_argument("--time-limit", type=_positive_float, default=None, metavar="S",
-                        help="wall-clock limit of the planning in seconds; the best result so far is kept "
-                             "(default: none)")
+    add_arguments(parser)
     parser.add_argument("--figures", choices=["none", "png", "html", "all"], default="all",
                         help="figures written after the result: PNGs, the interactive plan.html, both or none "
                              "(default: %(default)s)")
@@ -93,6 +51,10 @@ def main(argv: list[str] | None = None) -> int:
     except ScenarioError as exc:
         print(f"mal-plan: error: {exc}", file=sys.stderr)
         return outcome_code("invalid_input").exit_code
+    problem = check_values(values_from_args(args), lambda o: o.flag)
+    if problem:
+        print(f"mal-plan: error: {problem}", file=sys.stderr)
+        return outcome_code("invalid_input").exit_code
     out_dir = args.out or Path("out") / scenario.name
     problem = _unwritable(out_dir)
     if problem:
@@ -103,19 +65,11 @@ def main(argv: list[str] | None = None) -> int:
         print(f"mal-plan: random seed {args.seed}", file=sys.stderr)
     # Imported after argument parsing: CasADi and OMPL take a moment to load.
     from mal_planner.errors import InfeasibleRequest, TimeLimitReached
-    from mal_planner.initializer import PlanningFailed, known_specs
-    from mal_planner.pipeline import Planner, PlanOptions
+    from mal_planner.initializer import PlanningFailed
+    from mal_planner.pipeline import Planner
     from mal_planner.report import summary_table, write_figures, write_outputs
 
-    if args.initializer not in known_specs():
-        print(f"mal-plan: error: --initializer: unknown planner {args.initializer!r} "
-              f"(known: {', '.join(known_specs())})", file=sys.stderr)
-        return outcome_code("invalid_input").exit_code
-    landing = replace(LandingOptions(), guess=args.guess, fixed_landing_times=not args.free_landing_times,
-                      mesh_tol=args.mesh_tol, refine=not args.no_refine, strategy=args.strategy)
-    options = PlanOptions(initializer=args.initializer, seed=args.seed, optimize=not args.initial_only,
-                          landing=landing, time_limit_s=args.time_limit,
-                          refinement_rounds=0 if args.no_refine else PlanOptions.refinement_rounds)
+    options = build_plan_options(values_from_args(args))
     t0 = time.perf_counter()
     try:
         result = Planner(options).plan(scenario, reuse=False)

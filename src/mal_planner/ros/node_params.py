@@ -11,7 +11,7 @@ from dataclasses import dataclass, fields
 from pathlib import Path
 from typing import Any
 
-from mal_planner.landing import LandingOptions
+from mal_planner.options import PLAN_OPTIONS, Option, build_plan_options
 from mal_planner.pipeline import PlanOptions
 from mal_planner.ros.transport import load_params_file
 from mal_planner.sequencing import STRATEGIES
@@ -62,6 +62,8 @@ def _float(positive: bool = False, lo: float | None = None, hi: float | None = N
 
 def value_range(name: str) -> tuple[float, float] | None:
     """The inclusive range of a numeric parameter (for its descriptor: ``ros2 param describe``), or None."""
+    if name in ROS_OPTIONS:
+        return ROS_OPTIONS[name].value_range
     return getattr(PARAMETERS[name][1], "value_range", None)
 
 
@@ -98,51 +100,21 @@ def _figures(v: Any) -> str:
     raise ValueError("expected none, png, html or all")
 
 
-def _initializer(v: Any) -> str:
-    """A path planner that exists in this installation ('multi-rrt' or an OMPL geometric planner)."""
-    if not (v == "multi-rrt" or (isinstance(v, str) and v.startswith("ompl:") and len(v) > 5)):
-        raise ValueError("expected 'multi-rrt' or 'ompl:<planner>'")
-    from mal_planner.initializer.planners import known_specs
-
-    if v not in (known := known_specs()):
-        raise ValueError(f"no such planner (known: {', '.join(known)})")
-    return str(v)
-
-
-_seed = _int(-1)
-"""A random seed, or -1 for a random one."""
-
-
-MAX_SEGMENTS = 64
-"""Initial mesh segments per phase: refinement adds more where needed; beyond this the NLP only grows."""
-MAX_DEGREE = 16
-"""Collocation degree per segment: higher degrees make dense, slow segments; refinement splits them instead."""
-MIN_OUTPUT_DT_S, MAX_OUTPUT_DT_S = 0.01, 60.0
-"""Published path sampling: no controller follows a path finer than 100 Hz; a minute between samples is no path."""
 MAX_SETTLE_TIME_S = 600.0
 """Waiting longer than ten minutes of radar for a first plan is a typo, not a setting."""
 
-#: name -> (default, check, description)
+ROS_OPTIONS: dict[str, Option] = {o.ros: o for o in PLAN_OPTIONS if o.ros is not None}
+"""The plan options the node offers, by parameter name (declared once in :mod:`mal_planner.options`)."""
+
+#: name -> (default, check, description): the plan options, then the node's own
 PARAMETERS: dict[str, tuple[Any, Check, str]] = {
-    "initializer": ("multi-rrt", _initializer, "path planner of the initializer ('multi-rrt', 'ompl:<planner>')"),
-    "seed": (0, _seed, "random seed of the initializer, -1 = random"),
-    "optimize": (True, _bool, "run the pseudospectral optimizer (false: publish the initializer's paths)"),
-    "verify": (True, _bool, "verify optimized trajectories (separation, limits, re-integration)"),
-    "guess": ("initializer", _choice("initializer", "straight"), "optimizer initial guess"),
-    "fixed_landing_times": (True, _bool, "fix the landing times (scenario's, else the sequencer's + margin)"),
-    "mesh_tol": (1e-5, _float(positive=True), "mesh refinement tolerance"),
-    "refine": (True, _bool, "hp mesh refinement"),
-    "segments": (4, _int(1, MAX_SEGMENTS), "mesh segments per phase"),
-    "degree": (6, _int(2, MAX_DEGREE), "collocation degree per segment"),
-    "nlp_tol": (1e-8, _float(positive=True), "IPOPT tolerance"),
-    "max_nlp_iterations": (3000, _int(1), "IPOPT iteration limit"),
-    "max_mesh_iterations": (8, _int(1), "mesh refinement iteration limit"),
+    **{name: (o.ros_default(), o.check_ros, o.help + (f" [{o.unit}]" if o.unit else "")
+              + ("; 0 = no limit" if o.none_as == 0.0 else "")) for name, o in ROS_OPTIONS.items()},
     "wake_table": ("scenario", _choice("scenario", *WAKE_TABLES), "wake-turbulence minima between landings: the "
                    "scenario's separation.wake, or icao, recat-eu, none; categories from the scenario, else the "
                    "radar's AircraftState.wake_category (unknown: the worst case)"),
     "sequencing": ("scenario", _choice("scenario", *STRATEGIES), "who lands when: the scenario's sequencing.strategy,"
                    " or fcfs (first come first served) or optimal (least total delay, MILP)"),
-    "output_dt": (0.25, _float(lo=MIN_OUTPUT_DT_S, hi=MAX_OUTPUT_DT_S), "sample step of the published paths [s]"),
     "tracking_margins": (False, _bool, "plan with the closed loop's margins for flown plans: twice "
                          "deviation_threshold_m more separation, a tenth of the bank limit and half a path accuracy "
                          "from the airspace's bounds left to the aircraft's guidance"),
@@ -161,8 +133,6 @@ PARAMETERS: dict[str, tuple[Any, Check, str]] = {
     "kept_plan_expiry_s": (120.0, _float(), "withdraw a plan kept after failed replans this long after the first "
                            "failure (node clock) [s]; two minutes is 8 nm at 250 kt; 0 = never"),
     "service_timeout_s": (600.0, _float(positive=True), "longest a service call waits for its plan [s]"),
-    "planning_time_limit_s": (60.0, _float(), "wall-clock limit of one plan [s]; when it runs out the best result "
-                              "so far is kept (a failure is reported, the last plan stays); 0 = no limit"),
 }
 
 
@@ -173,6 +143,7 @@ class NodeParams:
     optimize: bool
     verify: bool
     guess: str
+    strategy: str
     fixed_landing_times: bool
     mesh_tol: float
     refine: bool
@@ -200,14 +171,9 @@ class NodeParams:
     planning_time_limit_s: float
 
     def plan_options(self) -> PlanOptions:
-        landing = LandingOptions(guess=self.guess, fixed_landing_times=self.fixed_landing_times,  # type: ignore[arg-type]
-                                 segments=self.segments, degree=self.degree, mesh_tol=self.mesh_tol,
-                                 nlp_tol=self.nlp_tol, max_nlp_iterations=self.max_nlp_iterations,
-                                 max_mesh_iterations=self.max_mesh_iterations, refine=self.refine,
-                                 output_dt=self.output_dt)
-        return PlanOptions(initializer=self.initializer, seed=None if self.seed < 0 else self.seed,
-                           optimize=self.optimize, verify=self.verify, landing=landing,
-                           time_limit_s=self.planning_time_limit_s or None)
+        values = {o.name: getattr(self, name) for name, o in ROS_OPTIONS.items()}
+        values["time_limit_s"] = values["time_limit_s"] or None  # 0: no limit
+        return build_plan_options(values)
 
 
 assert {f.name for f in fields(NodeParams)} == set(PARAMETERS)
