@@ -81,6 +81,11 @@ def test_real_runs_report_timings_iterations_and_plan_metrics(campaign: dict) ->
         assert 0.0 <= float(r["min_obstacle_clearance_nm"]) < 3.0
         assert r["landing_times_s"].count("=") == 2 and r["initializer_landing_times_s"].count("=") == 2
         assert float(r["max_delay_s"]) >= float(r["mean_delay_s"])
+        # no wake table: first come, first served is the strategy, so its delay is the schedule's
+        assert r["wake_mix"] == "" and r["sequencing_strategy"] == "fcfs" and r["sequencing_status"] == "heuristic"
+        assert float(r["fcfs_delay_s"]) == pytest.approx(float(r["scheduled_delay_s"]), abs=1e-6)
+        assert float(r["total_delay_s"]) >= 0.0
+        assert float(r["min_landing_gap_ratio"]) >= 1.0 - 1e-4 and r["landing_pairs_below"] == "0"
     assert (campaign["out"] / "logs" / "real-0.log").read_text()
 
 
@@ -122,7 +127,9 @@ def test_resume_redoes_nothing_and_a_hang_times_out(campaign: dict, monkeypatch:
 
 @pytest.mark.parametrize("extra, message", [
     (["--workers", "0"], "--workers: must be >= 1"),
-    (["--initializer", "nope"], "--initializer: unknown planner 'nope'"),
+    (["--initializer", "nope"], "--initializer: no such planner (known: multi-rrt"),
+    (["--mesh-tol", "2"], "--mesh-tol: must be < 1, got 2.0"),
+    (["--plan-time-limit-s", "0"], "--plan-time-limit-s: must be > 0, got 0.0"),
     (["--timeout-s", "0"], "--timeout-s: must be > 0"),
     (["missing.yaml"], "missing.yaml: no such scenario file"),
 ])

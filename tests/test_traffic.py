@@ -2,14 +2,23 @@
 
 from __future__ import annotations
 
+import hashlib
 import itertools
 from pathlib import Path
 
 import numpy as np
 import pytest
 
-from mal_planner.campaign.traffic import SEPARATION_MARGIN_NM, TrafficSpec, generate, generate_one
+from mal_planner.campaign.traffic import (
+    SEPARATION_MARGIN_NM,
+    WAKE_SHARES,
+    TrafficSpec,
+    generate,
+    generate_one,
+    wake_categories,
+)
 from mal_planner.campaign.traffic_cli import main
+from mal_planner.initializer.schedule import check_request, landing_spacing
 from mal_planner.initializer.timing import earliest_landing_times
 from mal_planner.scenario import load_scenario
 
@@ -91,3 +100,53 @@ def test_bad_aircraft_range_is_a_usage_error(tmp_path: Path) -> None:
     with pytest.raises(SystemExit) as exc:
         main(["--count", "1", "--aircraft", "5-2", "--out", str(tmp_path)])
     assert exc.value.code == 2
+
+
+# sha256 of the files of generator version 2 before --wake existed (commit 0e73027), without their first line
+# (it names the installed mal-planner version): five thesis files and three tma files, --landing-times mixed
+BEFORE_WAKE = {"thesis": (5, "49596cd8e255d10bf404dbf382ec9bfbbd876d3cbb791fa47e421f87339edb33"),
+               "tma": (3, "852c58e97e12728ef3de4233b2069ca024e24e4abc5714709f871f460563cf39")}
+
+
+@pytest.mark.parametrize("profile", sorted(BEFORE_WAKE))
+def test_without_wake_the_files_are_those_of_before(profile: str) -> None:
+    count, digest = BEFORE_WAKE[profile]
+    spec = TrafficSpec((2, 8), seed=2026, landing_times="mixed", profile=profile)
+    texts = [generate_one(spec, i).text for i in range(count)]
+    assert hashlib.sha256("".join(t.split("\n", 1)[1] for t in texts).encode()).hexdigest() == digest
+    assert all("wake" not in t and "sequencing" not in t for t in texts)
+    assert texts[0] == generate_one(TrafficSpec((2, 8), seed=2026, landing_times="mixed", profile=profile,
+                                                wake="none"), 0).text
+
+
+@pytest.mark.parametrize("profile", ["thesis", "tma"])
+def test_wake_mixed_files_carry_categories_and_the_options(tmp_path: Path, profile: str) -> None:
+    args = ["--wake", "mixed", "--profile", profile, "--landing-times", "mixed", "--aircraft", "3-8"]
+    files = _write(tmp_path / "a", 21, *args)
+    again = _write(tmp_path / "b", 21, *args)
+    assert [p.read_bytes() for p in files] == [p.read_bytes() for p in again]  # same seed, same files
+    plain = _write(tmp_path / "c", 21, "--profile", profile, "--landing-times", "mixed", "--aircraft", "3-8")
+    seen: set[str] = set()
+    for path, other in zip(files, plain, strict=True):
+        text = path.read_text()
+        assert "--wake mixed" in text.splitlines()[1]
+        sc, before = load_scenario(path), load_scenario(other)
+        assert sc.wake == "icao" and sc.sequencing.strategy == "optimal"
+        categories = [a.wake_category for a in sc.aircraft]
+        assert set(categories) <= set(WAKE_SHARES) and len(categories) == len(before.aircraft)
+        seen.update(categories)
+        # the categories have their own random stream: the aircraft are those of the same seed without wake
+        assert np.array_equal([a.position for a in sc.aircraft], [a.position for a in before.aircraft])
+        check_request(sc)  # fixed landing times keep every wake minimum (else InfeasibleRequest)
+        fixed = sorted((a.landing_time, a) for a in sc.aircraft if a.landing_time is not None)
+        for (ta, a), (tb, b) in itertools.pairwise(fixed):
+            assert tb - ta >= landing_spacing(sc, a, b)
+    assert seen == set(WAKE_SHARES)
+
+
+def test_wake_categories_follow_their_shares() -> None:
+    spec = TrafficSpec((8, 8), seed=5, wake="mixed")
+    drawn = [c for i in range(400) for c in wake_categories(spec, i, 8)]
+    for category, share in WAKE_SHARES.items():
+        assert drawn.count(category) / len(drawn) == pytest.approx(share, abs=0.03)
+    assert wake_categories(TrafficSpec((8, 8), seed=5), 0, 8) == ()

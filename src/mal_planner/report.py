@@ -69,7 +69,7 @@ def _limits(result: PlanResult, callsign: str) -> dict:
     return {"n_h": list(lim.n_h), "n_v": list(lim.n_v), "bank_angle_max": lim.bank_angle_max}
 
 
-def _sequence(result: PlanResult) -> dict | None:
+def sequence_document(result: PlanResult) -> dict | None:
     """Who lands when: each aircraft's slot, target, landing time and delay, from the schedule."""
     schedule = getattr(result.initial, "schedule", None)
     if schedule is None:
@@ -132,7 +132,7 @@ def result_to_dict(result: PlanResult) -> dict:
         "verified": bool(result.verification.verified) if result.verification else False,
         "outcome": _outcome(result),
         "landing_order": result.order,
-        "sequence": _sequence(result),
+        "sequence": sequence_document(result),
         "initializer": {"planner": initial.planner, "seed": initial.seed, "timings_s": initial.timings,
                         "collision_checks": initial.collision_checks},
         "optimizer": result.landing.stats() if result.landing is not None else None,
@@ -200,7 +200,7 @@ def validation_report(result: PlanResult) -> str:
             x, _, z = ev["position"]
             lines.append(f"| {a.callsign} | {ev['time_s']:.2f} | {x:.4f} | {z:.4f} | "
                          f"{math.degrees(ev['gamma']):.3f} | {math.degrees(ev['heading']):.3f} |")
-    sequence = _sequence(result)
+    sequence = sequence_document(result)
     if sequence is not None:
         lines += ["", f"## Landing sequence ({sequence['strategy']}, wake table {sequence['wake']})", "",
                   SEQUENCE_FIGURE, "", "| slot | aircraft | wake | target (s) | lands (s) | delay (s) |",

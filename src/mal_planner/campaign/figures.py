@@ -135,12 +135,41 @@ def figure_closed_loop(rows: Sequence[dict[str, str]], path: Path) -> Path:
     return _save(fig, path)
 
 
+def figure_delay(rows: Sequence[dict[str, str]], path: Path) -> Path:
+    """Verified plans: each scenario's total delay (planned landings) against first come, first served's on the
+    same problem (left; below the diagonal: the sequence saved delay), and the saving per N (right)."""
+    plt = _pyplot()
+    pts = [(n, f, d) for r in rows if r["status"] == "ok" and (n := as_float(r["n_aircraft"])) is not None
+           and (f := as_float(r.get("fcfs_delay_s") or "")) is not None
+           and (d := as_float(r.get("total_delay_s") or "")) is not None]
+    fig, (ax1, ax2) = plt.subplots(1, 2, figsize=(10, 4))
+    if pts:
+        n, fcfs, ours = np.array(pts).T
+        top = max(float(fcfs.max()), float(ours.max()), 1.0) * 1.05
+        ax1.plot([0.0, top], [0.0, top], "k--", lw=0.8, label="equal")
+        dots = ax1.scatter(fcfs, ours, s=12, c=n, cmap="viridis", label=f"scenarios ({n.size})")
+        fig.colorbar(dots, ax=ax1, label="aircraft N")
+        ax1.set(xlim=(0.0, top), ylim=(0.0, top))
+        sizes = sorted(set(n.tolist()))
+        ax2.boxplot([fcfs[n == k] - ours[n == k] for k in sizes], positions=sizes, widths=0.6)
+        ax2.set_xticks(sizes, [f"{k:g}" for k in sizes])
+        ax1.legend(fontsize=8)
+    ax1.set(xlabel="first come, first served: total delay (s)", ylabel="optimal sequence, planned: total delay (s)",
+            title="Total delay per scenario")
+    ax2.set(xlabel="aircraft N", ylabel="delay saved (s)", title="Saving against first come, first served")
+    for ax in (ax1, ax2):
+        ax.grid(True, alpha=0.3)
+    return _save(fig, path)
+
+
 def write_figures(rows: Sequence[dict[str, str]], out_dir: Path) -> list[Path]:
     out_dir = Path(out_dir)
     paths = [figure_success(rows, out_dir / "success_rate.png"),
              figure_stage_times(rows, out_dir / "stage_times.png"),
              figure_solve_times(rows, out_dir / "solve_times.png"),
              figure_failures(rows, out_dir / "failure_classes.png")]
+    if any(r.get("fcfs_delay_s") and r.get("total_delay_s") for r in rows):
+        paths.append(figure_delay(rows, out_dir / "delay_vs_fcfs.png"))
     if any(r.get("cl_landed") for r in rows):
         paths.append(figure_closed_loop(rows, out_dir / "closed_loop.png"))
     return paths

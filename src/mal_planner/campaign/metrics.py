@@ -4,9 +4,14 @@ from __future__ import annotations
 
 import numpy as np
 
+from mal_planner.initializer.schedule import LandingSchedule, sequencing_problem
 from mal_planner.obstacles import Superquadric
 from mal_planner.pipeline import PlanResult
+from mal_planner.report import sequence_document
 from mal_planner.scenario import Scenario
+from mal_planner.sequencing import SequencingInfeasible, first_come_first_served
+from mal_planner.sequencing.wake import categories as wake_categories
+from mal_planner.verification import LandingGap
 
 
 def ray_clearance_nm(obstacle: Superquadric, points: np.ndarray) -> np.ndarray:
@@ -56,6 +61,54 @@ def landing_columns(result: PlanResult) -> dict[str, object]:
     return columns
 
 
+def schedule_margin_s(schedule: LandingSchedule) -> float:
+    """The margin (s) the schedule put between a free aircraft's earliest landing and its target (0: all fixed)."""
+    free = [cs for cs in schedule.target if cs not in schedule.fixed and cs in schedule.earliest]
+    return float(schedule.target[free[0]] - schedule.earliest[free[0]]) if free else 0.0
+
+
+def fcfs_delay_s(scenario: Scenario, schedule: LandingSchedule) -> float | None:
+    """Total delay (s against the targets) of first come, first served on the very problem the schedule solved
+    (:func:`~mal_planner.initializer.schedule.sequencing_problem` from its earliest times and margin): no
+    planning, milliseconds. None when first come, first served finds no schedule (fixed times in its way)."""
+    problem = sequencing_problem(scenario, schedule.earliest, schedule_margin_s(schedule))
+    try:
+        return float(first_come_first_served(problem).cost)
+    except SequencingInfeasible:
+        return None
+
+
+def sequence_columns(scenario: Scenario, result: PlanResult) -> dict[str, object]:
+    """The sequence plan.json reports (strategy, status, total delay of the planned landings against the
+    targets), the schedule's own total delay, and first come, first served's on the same problem."""
+    schedule = result.initial.schedule
+    document = sequence_document(result)
+    if schedule is None or document is None:
+        return {}
+    return {"sequencing_strategy": schedule.strategy, "sequencing_status": schedule.status,
+            "total_delay_s": document["total_delay_s"],
+            "scheduled_delay_s": float(sum(schedule.delay(cs) for cs in schedule.order)),
+            "fcfs_delay_s": fcfs_delay_s(scenario, schedule)}
+
+
+def landing_gap_columns(scenario: Scenario, result: PlanResult) -> dict[str, object]:
+    """From ``verification.landings`` (consecutive landings of the re-flown controls): the smallest ratio of a
+    gap to the time the pair needs (its wake minimum, or the scenario's spacing when that is more; >= 1: every
+    pair keeps it) and the number of pairs below, counted as the verification does: a wake minimum with no
+    tolerance, the scenario's spacing less the verification's landing-time tolerance."""
+    report = result.verification
+    if report is None or not report.landings:
+        return {}
+    spacing, tol = scenario.landing_spacing_s, report.tolerances.landing_time_s
+
+    def below(gap: LandingGap) -> bool:
+        wake_bound = gap.wake is not None and gap.needed_s > spacing
+        return gap.gap_s < gap.needed_s - (0.0 if wake_bound else tol)
+
+    return {"min_landing_gap_ratio": float(min(g.gap_s / g.needed_s for g in report.landings)),
+            "landing_pairs_below": sum(below(g) for g in report.landings)}
+
+
 def plan_columns(scenario: Scenario, result: PlanResult) -> dict[str, object]:
     """Timings, iterations, separation, clearance and landing times of a finished plan."""
     timings = result.timings
@@ -72,6 +125,8 @@ def plan_columns(scenario: Scenario, result: PlanResult) -> dict[str, object]:
         "min_obstacle_clearance_nm": min_obstacle_clearance_nm(scenario, result) if result.optimized else None,
     }
     columns.update(landing_columns(result))
+    columns.update(sequence_columns(scenario, result))
+    columns.update(landing_gap_columns(scenario, result))
     return columns
 
 
@@ -88,6 +143,15 @@ def landing_times_mode(scenario: Scenario) -> str:
     return "fixed" if all(given) else ("free" if not any(given) else "partial")
 
 
+def wake_mix(scenario: Scenario) -> str | None:
+    """``"icao:H=1;M=3;L=3"``: the wake table and how many aircraft of each category (None without a table)."""
+    if scenario.wake == "none":
+        return None
+    drawn = [ac.wake_category for ac in scenario.aircraft]
+    return f"{scenario.wake}:" + ";".join(f"{c}={drawn.count(c)}" for c in wake_categories(scenario.wake)
+                                          if c in drawn)
+
+
 def scenario_columns(scenario: Scenario) -> dict[str, object]:
     return {"name": scenario.name, "n_aircraft": len(scenario.aircraft), "layout": layout_of(scenario),
-            "landing_times": landing_times_mode(scenario)}
+            "landing_times": landing_times_mode(scenario), "wake_mix": wake_mix(scenario)}

@@ -47,7 +47,17 @@ CLOSED_LOOP_COLUMNS: tuple[str, ...] = (
     "cl_simulator",                # who flew: ours (FlightSimulator) or bluesky
     "cl_simulator_losses_of_separation",  # the simulator's own count (BlueSky's conflict detection); empty: ours
 )
-COLUMNS = COLUMNS + CLOSED_LOOP_COLUMNS
+SEQUENCE_COLUMNS: tuple[str, ...] = (
+    "wake_mix",                    # wake table and aircraft per category, "icao:H=1;M=3;L=3"; empty: no table
+    "sequencing_strategy", "sequencing_status",  # the schedule's strategy (fcfs | optimal) and its status
+    "total_delay_s",               # plan.json sequence.total_delay_s: planned landings minus targets, summed (s)
+    "scheduled_delay_s",           # the same for the schedule's times (what the sequencing strategy chose)
+    "fcfs_delay_s",                # first come, first served's total delay on the same sequencing problem
+    "min_landing_gap_ratio",       # smallest consecutive landing gap / the time it needs (verification.landings)
+    "landing_pairs_below",         # consecutive landings closer than they need (wake minimum or spacing)
+)
+"""Sequencing and wake columns (empty for runs without a plan; missing from tables written before them)."""
+COLUMNS = COLUMNS + CLOSED_LOOP_COLUMNS + SEQUENCE_COLUMNS
 
 
 def format_row(row: dict) -> dict[str, str]:
@@ -74,6 +84,7 @@ class ResultsTable:
         new = not self.path.exists() or self.path.stat().st_size == 0
         if not new:
             _drop_partial_line(self.path)
+            _add_missing_columns(self.path)
         self._file = self.path.open("a", encoding="utf-8", newline="")
         self._writer = csv.DictWriter(self._file, fieldnames=COLUMNS)
         if new:
@@ -99,6 +110,24 @@ def _drop_partial_line(path: Path) -> None:
     data = path.read_bytes()
     if data and not data.endswith(b"\n"):
         path.write_bytes(data[: data.rfind(b"\n") + 1])
+
+
+def _add_missing_columns(path: Path) -> None:
+    """Rewrite a table written before some of :data:`COLUMNS` existed with today's header, those columns empty
+    (their default), so that resumed rows line up with the header. A table with today's header is not touched."""
+    text = path.read_text(encoding="utf-8")
+    reader = csv.DictReader(io.StringIO(text))
+    if reader.fieldnames is None or list(reader.fieldnames) == list(COLUMNS):
+        return
+    extra = [c for c in reader.fieldnames if c not in COLUMNS]
+    rows = list(reader)
+    out = io.StringIO()
+    writer = csv.DictWriter(out, fieldnames=[*COLUMNS, *extra], restval="")
+    writer.writeheader()
+    writer.writerows(rows)
+    tmp = path.with_suffix(".tmp")
+    tmp.write_text(out.getvalue(), encoding="utf-8")
+    tmp.replace(path)
 
 
 class ResultsFormatError(ValueError):

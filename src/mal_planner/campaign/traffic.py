@@ -16,6 +16,14 @@ Two profiles give the numbers (:data:`PROFILES`): ``thesis`` (the thesis's 6-nm 
 needs on the common approach) and ``tma`` (a real terminal area: 45 nm across,
 3 nm separation, 90 s landing spacing, 30 deg bank, half the files with a 3 deg glide path at the runway).
 
+With ``wake="mixed"`` (``mal-traffic --wake mixed``) every aircraft gets an ICAO wake-turbulence category
+(HEAVY, MEDIUM or LIGHT, shares :data:`WAKE_SHARES`), and the file asks for the ICAO wake minima
+(``separation.wake: icao``) and the optimal sequence (``sequencing.strategy: optimal``); fixed landing times keep
+the wake minimum of each consecutive pair (:func:`fixed_schedule` spaces by
+:func:`~mal_planner.initializer.schedule.landing_spacing`, which includes it). The categories come from their
+own random stream, ``default_rng([seed, i, WAKE_STREAM])``, so the aircraft, obstacles and airspace are those
+of the same seed without wake (fixed landing times differ: they keep the wake minima).
+
 Each scenario ``i`` draws from ``numpy.random.default_rng([seed, i])``: the same seed gives byte-identical
 files, and scenario i does not depend on how many are generated. Every text is validated with the
 scenario loader before it is returned.
@@ -40,6 +48,21 @@ LAYOUTS = ("wall", "no-fly-zones")
 LANDING_TIME_MODES = ("free", "fixed")
 ATTEMPTS = 200
 Range = tuple[float, float]
+
+WAKE_MODES = ("none", "mixed")
+"""``mal-traffic --wake``: none (no categories, no wake minima: the files as before) or mixed."""
+WAKE_TABLE = "icao"
+"""The wake table mixed traffic asks for (``separation.wake``; :mod:`mal_planner.sequencing.wake`)."""
+WAKE_SHARES: dict[str, float] = {"H": 0.20, "M": 0.65, "L": 0.15}
+"""Share of each ICAO category among the arrivals of mixed traffic (fractions of the aircraft, summing to 1).
+Assumed, not measured: mostly MEDIUM (A320/B737 class) with a fifth HEAVY, as at a large airport with long-haul
+traffic; LIGHT is more common than at a hub (a few per cent there), so that every entry of the ICAO table
+(H->H 4 nm, H->M 5, H->L 6, M->L 5) occurs often enough to matter. No SUPER (J)."""
+WAKE_STREAM = 1
+"""Third entry of the categories' seed ``[seed, index, WAKE_STREAM]``: a stream apart from the geometry's
+``[seed, index]``."""
+WAKE_STRATEGY = "optimal"
+"""The sequencing strategy mixed traffic asks for (``sequencing.strategy``): the sequence of least total delay."""
 
 
 @dataclass(frozen=True)
@@ -164,6 +187,8 @@ class TrafficSpec:
     """Fixed x and y extents (x centred on the runway, y from the profile's lower edge); None: grows."""
     profile: str = "thesis"
     """A key of :data:`PROFILES`."""
+    wake: str = "none"
+    """A value of :data:`WAKE_MODES`: none, or mixed (categories drawn by :data:`WAKE_SHARES`)."""
 
     @property
     def numbers(self) -> TrafficProfile:
@@ -174,7 +199,8 @@ class TrafficSpec:
         space = "auto" if self.airspace_nm is None else f"{self.airspace_nm[0]:g} {self.airspace_nm[1]:g}"
         text = (f"--aircraft {n0 if n0 == n1 else f'{n0}-{n1}'} --seed {self.seed} --layout {self.layout} "
                 f"--landing-times {self.landing_times} --airspace-nm {space}")
-        return text if self.profile == "thesis" else f"{text} --profile {self.profile}"
+        text = text if self.profile == "thesis" else f"{text} --profile {self.profile}"
+        return text if self.wake == "none" else f"{text} --wake {self.wake}"
 
 
 @dataclass(frozen=True)
@@ -212,6 +238,7 @@ class _Draw:
                            else LANDING_TIME_MODES[int(self.rng.integers(2))])
         share = self.profile.glide_path_share  # drawn only where the profile has glide paths (thesis: as before)
         self.glide_deg = self.profile.glide_path_deg if share > 0.0 and self.rng.random() < share else 0.0
+        self.wake = wake_categories(spec, index, self.n)
 
     def geometry(self) -> _Geometry:
         rng, pr = self.rng, self.profile
@@ -298,6 +325,23 @@ class _Draw:
         return zones
 
 
+def wake_categories(spec: TrafficSpec, index: int, n: int) -> tuple[str, ...]:
+    """The wake category of each of scenario ``index``'s ``n`` aircraft (stream order; none without wake), drawn
+    by :data:`WAKE_SHARES` from their own stream ``default_rng([seed, index, WAKE_STREAM])``."""
+    if spec.wake == "none":
+        return ()
+    if spec.wake != "mixed":
+        raise TrafficError(f"wake: expected one of {', '.join(WAKE_MODES)}, got {spec.wake!r}")
+    rng = np.random.default_rng([spec.seed, index, WAKE_STREAM])
+    names = list(WAKE_SHARES)
+    return tuple(str(c) for c in rng.choice(names, size=n, p=[WAKE_SHARES[c] for c in names]))
+
+
+def wake_mix_text(categories: tuple[str, ...]) -> str:
+    """``"2 H, 5 M, 1 L"``: the count of each category, in the order of :data:`WAKE_SHARES`."""
+    return ", ".join(f"{categories.count(c)} {c}" for c in WAKE_SHARES if c in categories)
+
+
 def _boxes_overlap(a: Superquadric, b: Superquadric, gap: float) -> bool:
     box_a, box_b = a.bounding_box()[:2], b.bounding_box()[:2]
     return bool(np.all(box_a[:, 0] - gap < box_b[:, 1]) and np.all(box_b[:, 0] - gap < box_a[:, 1]))
@@ -360,6 +404,8 @@ def _document(name: str, draw: _Draw, aircraft: list[dict[str, float]], airspace
         cs = f"T{i + 1:02d}"
         entry: dict[str, Any] = {"callsign": cs, "position": [_r(v) for v in a["p"]], "flight_path_angle_deg": 0.0,
                                  "heading_deg": _r(a["heading"], 1), "speed": _r(a["speed"], 5)}
+        if draw.wake:
+            entry["wake_category"] = draw.wake[i]
         if landing is not None:
             entry["landing_time"] = landing[cs]
         entries.append(entry)
@@ -378,23 +424,31 @@ def _document(name: str, draw: _Draw, aircraft: list[dict[str, float]], airspace
                           "semi_axes": list(zone.semi_axes), "p": zone.p})
     kind = "wall with a hole" if geo.wall else "no-fly zones"
     glide = f", {draw.glide_deg:g} deg glide path" if draw.glide_deg else ""
-    return {"name": name, "description": f"{len(aircraft)} arriving aircraft ({kind}{glide})",
-            "gravity": 0.0052952,
-            "runway": {"position": [0.0, 0.0, 0.0], "flight_path_angle_deg": -draw.glide_deg or 0.0,
-                       "heading_deg": -90.0},
-            "airspace": {k: [_r(v) for v in airspace[i]] for i, k in enumerate("xyz")},
-            "aircraft": entries, "obstacles": obstacles,
-            "separation": {"distance_nm": pr.separation_nm, "landing_spacing_s": pr.landing_spacing_s,
-                           "max_landing_spacing_s": pr.max_landing_spacing_s},
-            "limits": {"bank_angle_deg": pr.bank_angle_deg, "n_h": list(pr.n_h), "n_v": list(pr.n_v)}}
+    wake = f", wake {wake_mix_text(draw.wake)}" if draw.wake else ""
+    separation: dict[str, Any] = {"distance_nm": pr.separation_nm, "landing_spacing_s": pr.landing_spacing_s,
+                                  "max_landing_spacing_s": pr.max_landing_spacing_s}
+    if draw.wake:
+        separation["wake"] = WAKE_TABLE
+    document: dict[str, Any] = {
+        "name": name, "description": f"{len(aircraft)} arriving aircraft ({kind}{glide}{wake})",
+        "gravity": 0.0052952,
+        "runway": {"position": [0.0, 0.0, 0.0], "flight_path_angle_deg": -draw.glide_deg or 0.0, "heading_deg": -90.0},
+        "airspace": {k: [_r(v) for v in airspace[i]] for i, k in enumerate("xyz")},
+        "aircraft": entries, "obstacles": obstacles, "separation": separation,
+        "limits": {"bank_angle_deg": pr.bank_angle_deg, "n_h": list(pr.n_h), "n_v": list(pr.n_v)}}
+    if draw.wake:
+        document["sequencing"] = {"strategy": WAKE_STRATEGY}
+    return document
 
 
 def _text(document: dict[str, Any], spec: TrafficSpec, index: int, draw: _Draw) -> str:
     header = (f"# Generated by mal-traffic {GENERATOR_VERSION} (mal-planner {version('mal-planner')}): "
               f"scenario {index}\n"
               f"# parameters: {spec.describe()}\n"
-              f"# drawn: {draw.n} aircraft, layout {draw.layout}, landing times {draw.times_mode}; "
-              f"rng numpy default_rng([{spec.seed}, {index}])\n")
+              f"# drawn: {draw.n} aircraft, layout {draw.layout}, landing times {draw.times_mode}"
+              + (f", wake categories {' '.join(draw.wake)} (default_rng([{spec.seed}, {index}, {WAKE_STREAM}]))"
+                 if draw.wake else "")
+              + f"; rng numpy default_rng([{spec.seed}, {index}])\n")
     return header + yaml.safe_dump(document, sort_keys=False, default_flow_style=None, width=120)
 
 

@@ -7,7 +7,16 @@ import re
 import sys
 from pathlib import Path
 
-from mal_planner.campaign.traffic import PROFILES, TrafficError, TrafficSpec, generate_one
+from mal_planner.campaign.traffic import (
+    PROFILES,
+    WAKE_MODES,
+    WAKE_SHARES,
+    WAKE_STRATEGY,
+    WAKE_TABLE,
+    TrafficError,
+    TrafficSpec,
+    generate_one,
+)
 
 PROG = "mal-traffic"
 MAX_AIRCRAFT = 50
@@ -46,6 +55,11 @@ def build_parser() -> argparse.ArgumentParser:
                         help="the numbers of the traffic: thesis (the thesis's 6-nm box, 0.25 nm separation, 45 deg "
                              "bank) or tma (a real terminal area: 45 nm across, 3 nm separation, 90 s landing "
                              "spacing, 30 deg bank, glide paths) (default: %(default)s)")
+    shares = ", ".join(f"{c} {100 * share:g} %%" for c, share in WAKE_SHARES.items())  # %% : argparse formats help
+    parser.add_argument("--wake", choices=WAKE_MODES, default="none",
+                        help=f"none: no wake categories (the files as before); mixed: each aircraft draws an ICAO "
+                             f"category ({shares}) and the file asks for the {WAKE_TABLE} wake minima and the "
+                             f"{WAKE_STRATEGY} sequence (default: %(default)s)")
     return parser
 
 
@@ -68,7 +82,8 @@ def main(argv: list[str] | None = None) -> int:
                                    "earliest_landing_times, which this installation lacks") from None
         spec = TrafficSpec(aircraft=args.aircraft, seed=args.seed, layout=args.layout,
                            landing_times=args.landing_times,
-                           airspace_nm=tuple(args.airspace_nm) if args.airspace_nm else None, profile=args.profile)
+                           airspace_nm=tuple(args.airspace_nm) if args.airspace_nm else None, profile=args.profile,
+                           wake=args.wake)
         args.out.mkdir(parents=True, exist_ok=True)
         for index in range(args.count):
             generated = generate_one(spec, index)
