@@ -326,3 +326,33 @@ def test_free_landing_times_keep_each_pairs_wake_spacing_in_the_nlp() -> None:
     need = [planned_spacing(scenario, scenario.aircraft_by_callsign(a), scenario.aircraft_by_callsign(b))
             for a, b in itertools.pairwise(order)]
     assert spacing == pytest.approx(need) and spacing[-1] > 100.0 > spacing[0] > scenario.landing_spacing_s
+
+
+def test_time_windows_and_costs_from_the_scenario() -> None:
+    """Per aircraft target, latest time and costs per second early and late reach the sequencer (defaults: target =
+    earliest, no latest, 0 and 1: the total delay); a latest time no landing can meet is refused naming it."""
+    from mal_planner.errors import InfeasibleRequest
+    from mal_planner.initializer.schedule import make_schedule, sequencing_problem
+    from mal_planner.initializer.timing import earliest_landing_times
+    from mal_planner.scenario import parse_scenario
+
+    data = _scenario_data()
+    plain = parse_scenario(data)
+    earliest = earliest_landing_times(plain)
+    default = sequencing_problem(plain, earliest, 5.0)
+    assert np.allclose(default.target, default.earliest) and np.all(np.isinf(default.latest))
+    assert np.all(default.cost_early == 0.0) and np.all(default.cost_late == 1.0)
+    first = data["aircraft"][0]
+    cs = first["callsign"]
+    first.update({"target_time": earliest[cs] + 60.0, "latest_time": earliest[cs] + 120.0, "cost_early": 2.0,
+                  "cost_late": 3.0})
+    windows = parse_scenario(data)
+    problem = sequencing_problem(windows, earliest, 5.0)
+    assert (problem.target[0], problem.latest[0], problem.cost_early[0], problem.cost_late[0]) == (
+        earliest[cs] + 60.0, earliest[cs] + 120.0, 2.0, 3.0)
+    data["sequencing"] = {"strategy": "optimal"}
+    schedule = make_schedule(parse_scenario(data), earliest, 5.0)
+    assert schedule.times[cs] == pytest.approx(earliest[cs] + 60.0)  # on its target: early costs, late costs more
+    first["latest_time"] = earliest[cs] - 30.0
+    with pytest.raises(InfeasibleRequest, match=f"{cs}: latest landing time .* is before its earliest"):
+        make_schedule(parse_scenario(data), earliest, 5.0)

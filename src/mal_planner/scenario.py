@@ -85,6 +85,14 @@ class _AircraftCommon(_Strict):
     """ICAO (J, H, M, L) or RECAT-EU (A-F) wake-turbulence category; required by ``separation.wake``."""
     landing_time: float | None = Field(None, gt=0.0)
     """Fixed landing time in s (as in the thesis); omitted: taken from the sequencer."""
+    target_time: float | None = Field(None, gt=0.0)
+    """Target landing time in s for the sequencer; omitted: the earliest it can land (a free aircraft)."""
+    latest_time: float | None = Field(None, gt=0.0)
+    """Latest landing time in s (e.g. its fuel); omitted: none."""
+    cost_early: float = Field(0.0, ge=0.0)
+    """Cost per second of landing before the target (Beasley's g); 0: early is free."""
+    cost_late: float = Field(1.0, ge=0.0)
+    """Cost per second of landing after the target (Beasley's h); 1: delay in seconds."""
     limits: LimitsConfig | None = None
     """Per-aircraft limits; omitted: the scenario's limits."""
 
@@ -437,6 +445,11 @@ class Aircraft:
     limits: ControlLimits
     wake_category: str | None = None
     landing_time: float | None = None
+    target_time: float | None = None
+    """The sequencer's target landing time (s; None: its earliest); see :class:`_AircraftCommon`."""
+    latest_time: float | None = None
+    cost_early: float = 0.0
+    cost_late: float = 1.0
 
     @property
     def speed(self) -> float:
@@ -531,11 +544,8 @@ class Scenario:
 
     def with_initial_states(self, states: dict[str, np.ndarray]) -> Scenario:
         """A copy with some aircraft's initial states replaced (e.g. from radar); others unchanged."""
-        new = tuple(
-            Aircraft(a.callsign, np.asarray(states[a.callsign], float), a.dynamics, a.limits, a.wake_category,
-                     a.landing_time) if a.callsign in states else a
-            for a in self.aircraft
-        )
+        new = tuple(replace(a, state0=np.asarray(states[a.callsign], float)) if a.callsign in states else a
+                    for a in self.aircraft)
         return replace(self, aircraft=new)
 
 
@@ -602,7 +612,8 @@ def build_scenario(config: ScenarioConfig, source: str = "<scenario>") -> Scenar
                                 f"{ac.callsign}'s airspeed: it could not make way against it")
         limits = ac.limits.to_limits() if ac.limits else (
             config.limits.to_limits() if "limits" in config.model_fields_set else dyn.default_limits)
-        aircraft.append(Aircraft(ac.callsign, state0, dyn, limits, ac.wake_category, ac.landing_time))
+        aircraft.append(Aircraft(ac.callsign, state0, dyn, limits, ac.wake_category, ac.landing_time,
+                                 ac.target_time, ac.latest_time, ac.cost_early, ac.cost_late))
         where, what = f"aircraft[{i}].position", str(list(ac.position))
         if isinstance(geo := given.aircraft[i], GeoAircraftConfig):
             where = f"aircraft[{i}].lat/lon/alt_ft"

@@ -192,21 +192,27 @@ def planned_spacing(scenario: Scenario, leader: Aircraft, follower: Aircraft) ->
 def sequencing_problem(scenario: Scenario, earliest: Mapping[str, float], margin_s: float) -> SequencingProblem:
     """The scenario's landings as an aircraft landing problem (:mod:`mal_planner.sequencing`).
 
-    A free aircraft may land from its turn-aware earliest time plus ``margin_s`` on, which is also its target:
-    every second later is one second of delay (no latest time). A fixed landing time is a window of one instant
-    (the scenario's times win; :func:`check_request` checks them against each other). Each pair keeps
-    :func:`planned_spacing`; two fixed aircraft need none from the sequencer."""
+    A free aircraft may land from its turn-aware earliest time plus ``margin_s`` on; its target is the
+    scenario's ``target_time``, else that earliest time; its latest time the scenario's ``latest_time``, else none;
+    each second early or late costs its ``cost_early`` / ``cost_late`` (defaults 0 and 1: the total delay). A fixed
+    landing time is a window of one instant (the scenario's times win; :func:`check_request` checks them against
+    each other). Each pair keeps :func:`planned_spacing`; two fixed aircraft need none from the sequencer. A window
+    that no landing can meet is refused by the sequencer, naming the aircraft."""
     aircraft = scenario.aircraft
     n = len(aircraft)
     start = np.array([float(ac.landing_time) if ac.landing_time is not None else earliest[ac.callsign] + margin_s
                       for ac in aircraft])
-    latest = np.array([float(ac.landing_time) if ac.landing_time is not None else np.inf for ac in aircraft])
+    target = np.array([s if ac.landing_time is not None or ac.target_time is None else float(ac.target_time)
+                       for s, ac in zip(start, aircraft, strict=True)])
+    latest = np.array([float(ac.landing_time) if ac.landing_time is not None else
+                       (np.inf if ac.latest_time is None else float(ac.latest_time)) for ac in aircraft])
     separation = np.zeros((n, n))
     for i, j in itertools.permutations(range(n), 2):
         if aircraft[i].landing_time is None or aircraft[j].landing_time is None:
             separation[i, j] = planned_spacing(scenario, aircraft[i], aircraft[j])
-    return SequencingProblem(tuple(ac.callsign for ac in aircraft), start, start.copy(), latest, np.zeros(n),
-                             np.ones(n), separation)
+    return SequencingProblem(tuple(ac.callsign for ac in aircraft), start, target, latest,
+                             np.array([ac.cost_early for ac in aircraft], float),
+                             np.array([ac.cost_late for ac in aircraft], float), separation)
 
 
 def make_schedule(scenario: Scenario, earliest: Mapping[str, float], margin_s: float | None = None
@@ -222,8 +228,8 @@ def make_schedule(scenario: Scenario, earliest: Mapping[str, float], margin_s: f
         if ac.landing_time is not None and ac.landing_time < earliest[ac.callsign]:
             log.warning("%s: fixed landing time %.1f s is before the estimated earliest landing %.1f s; "
                         "trying anyway", ac.callsign, ac.landing_time, earliest[ac.callsign])
-    problem = sequencing_problem(scenario, earliest, margin_s)
     try:
+        problem = sequencing_problem(scenario, earliest, margin_s)
         result = sequence(problem, scenario.sequencing)
     except (SequencingInfeasible, TimeoutError) as exc:
         raise InfeasibleRequest(f"sequencing ({scenario.sequencing.strategy}): {exc}") from None

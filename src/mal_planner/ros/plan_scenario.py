@@ -111,9 +111,12 @@ def build_plan_scenario(base: Scenario, tracks: Mapping[str, Track], plan_start:
             dyn = make_dynamics(DEFAULT_MODEL, tr.speed, gravity=base.gravity, wind_x=base.wind[0], wind_y=base.wind[1])
             aircraft.append(Aircraft(cs, state, dyn, default_limits, radar_wake(base, tr.wake), None))
             continue
-        landing = None if known.landing_time is None else known.landing_time - landing_shift
-        candidate = Aircraft(cs, state, known.dynamics, known.limits, radar_wake(base, known.wake_category or tr.wake),
-                             landing)
+        def shifted(t: float | None) -> float | None:  # the scenario's times count from the first radar stamp
+            return None if t is None else t - landing_shift
+
+        candidate = replace(known, state0=state, wake_category=radar_wake(base, known.wake_category or tr.wake),
+                            landing_time=shifted(known.landing_time), target_time=shifted(known.target_time),
+                            latest_time=shifted(known.latest_time))
         leaving = vertical_escape_problem(base, candidate)
         if leaving is not None:  # like an aircraft outside: no plan can keep it inside the airspace
             left_out[cs] = f"leaving the airspace ({leaving.split(': ', 1)[1]})"
