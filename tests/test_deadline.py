@@ -114,7 +114,9 @@ def test_node_reports_the_initializer_timeout_as_a_failed_plan(thesis) -> None:
     options = PlanOptions(seed=0, time_limit_s=1e-6)
     failed: list[tuple[str, str | None]] = []
     node = SimpleNamespace(
-        _inputs=lambda job: PlanInputs(thesis, 0.0, {}), _plan_options=lambda: options, planner=Planner(options),
+        _inputs=lambda job: PlanInputs(thesis, 0.0, {}), _plan_options=lambda: options, _planning_options=None,
+        _planning=SimpleNamespace(plan=lambda sc, opts, *, reuse, start_time, what_if: Planner(opts).plan(
+            sc, reuse=reuse, start_time=start_time)),  # in this process: the PlanProcess interface
         _current=None, _failed=lambda job, inputs, reason, result=None, failure_class=None: failed.append(
             (reason, failure_class)) or SimpleNamespace(success=False, message=reason))
     outcome = PlannerNode._plan(node, PlanJob(["test"]))  # type: ignore[arg-type]

@@ -30,7 +30,7 @@ import numpy as np
 from mal_planner.campaign.outcome import classify
 from mal_planner.dynamics import bank_angle
 from mal_planner.errors import outcome_code
-from mal_planner.pipeline import Planner, PlanOptions, PlanResult
+from mal_planner.pipeline import PlanOptions, PlanResult
 from mal_planner.ros.convert import (
     aircraft_state_to_planner,
     byte_field,
@@ -42,6 +42,7 @@ from mal_planner.ros.convert import (
 )
 from mal_planner.ros.markers import marker_array
 from mal_planner.ros.node_params import NodeParams, declare_parameters, describe, read_params_file, update_params
+from mal_planner.ros.plan_process import LOG_FORMAT, PlanProcess
 from mal_planner.ros.plan_scenario import NoFlyZoneError, PlanInputs, apply_no_fly_zone, build_plan_scenario
 from mal_planner.ros.state_store import AHEAD_TOLERANCE_S, CALLSIGN_RE, Track, TrackStore, check_track
 from mal_planner.ros.transport import QOS_DEFAULT, QOS_LATCHED, QoSProfile, create_node
@@ -133,7 +134,8 @@ class PlannerNode:
         self.obstacles = scenario.obstacles
         self.wind: tuple[float, float] = scenario.wind
         """The wind plans are made in (nm/s, local frame): the scenario's until a message on ``wind`` says otherwise."""
-        self.planner = Planner(self._plan_options())
+        self._planning = PlanProcess()  # started now: it loads CasADi while the radar settles
+        self._planning_options: PlanOptions | None = None
         self.tracks = TrackStore()
         self.out_dir = Path(self.params.output_dir) if self.params.output_dir else None
         self._lock = threading.Condition()
@@ -474,16 +476,15 @@ class PlannerNode:
                  ", ".join(a.callsign for a in sc.aircraft), inputs.plan_start)
         explicit = job.explicit is not None
         options = self._plan_options()
-        if explicit:  # a what-if plan: its own planner, so the radar plan's warm start stays intact
-            planner = Planner(options)
-        else:
-            if self.planner.options != options:
-                log.info("planner options changed: the next plan starts from scratch")
-                self.planner = Planner(options)
-            planner = self.planner
+        if not explicit and self._planning_options not in (None, options):
+            log.info("planner options changed: the next plan starts from scratch")
+        if not explicit:
+            self._planning_options = options
         try:
-            # The Planner falls back by itself (warm, cold, fresh initializer, optimizer-chosen times).
-            result = planner.plan(sc, reuse=not explicit, start_time=inputs.plan_start)
+            # In the planning process; the Planner falls back by itself (warm, cold, fresh initializer,
+            # optimizer-chosen times). A what-if plan has its own planner: the radar plan's warm start stays intact.
+            result = self._planning.plan(sc, options, reuse=not explicit, start_time=inputs.plan_start,
+                                         what_if=explicit)
         except Exception as exc:
             log.debug("planning failed", exc_info=True)
             return self._failed(job, inputs, f"planning failed: {' '.join(str(exc).split()) or type(exc).__name__}",
@@ -531,7 +532,7 @@ class PlannerNode:
             else:
                 reason += "; no plan yet"
             log.error("%s", reason)
-            self.planner = Planner(self._plan_options())
+            self._planning.reset()
             self._publish_diagnostics(result, f"FAILED: {reason}", failed=True, extra=extra)
         else:
             log.error("what-if plan failed: %s", reason)
@@ -859,6 +860,7 @@ class PlannerNode:
                     fut.set_result(PlanOutcome(False, "planner is shutting down", failure_class="crash"))
         self.node.shutdown()
         self._worker.join(timeout=1.0)
+        self._planning.close()
 
 
 def _default_path(name: str) -> str | None:
@@ -911,8 +913,7 @@ def other_planner(namespace: str, backend: str) -> str | None:
 
 
 def setup_logging(level: str = "INFO") -> None:
-    logging.basicConfig(level=getattr(logging, level.upper(), logging.INFO), stream=sys.stderr,
-                        format="[%(levelname)s] [%(asctime)s] [%(name)s]: %(message)s")
+    logging.basicConfig(level=getattr(logging, level.upper(), logging.INFO), stream=sys.stderr, format=LOG_FORMAT)
 
 
 def main(argv: list[str] | None = None) -> int:
