@@ -347,14 +347,15 @@ def parse_radar(line: str) -> dict[str, int]:
 
 
 def rss_bytes(pid: int) -> int | None:
-    try:
-        import psutil
-
-        return int(psutil.Process(pid).memory_info().rss)
-    except ImportError:
-        pass
-    except Exception:
+    """Resident memory of the planner: the node process and its children (the planning process, multiprocessing's
+    resource tracker), from /proc (Linux)."""
+    own = _vm_rss(pid)
+    if own is None:
         return None
+    return own + sum(_vm_rss(child) or 0 for child in _children(pid))
+
+
+def _vm_rss(pid: int) -> int | None:
     try:
         for line in Path(f"/proc/{pid}/status").read_text().splitlines():
             if line.startswith("VmRSS:"):
@@ -362,6 +363,16 @@ def rss_bytes(pid: int) -> int | None:
     except OSError:
         return None
     return None
+
+
+def _children(pid: int) -> list[int]:
+    out: list[int] = []
+    try:
+        for task in Path(f"/proc/{pid}/task").iterdir():
+            out += [int(c) for c in (task / "children").read_text().split()]
+    except OSError:
+        pass
+    return out
 
 
 def generated(n: int, folder: Path) -> Path:
@@ -480,6 +491,46 @@ def intake(watch_log: Path, radar_log: Path) -> dict[str, Any]:
     backlog = max(0.0, at_status - received)
     return {"intake_received": received, "intake_sent_by_then": round(at_status),
             "intake_backlog_s": backlog / per_s if per_s > 0 else None}
+
+
+def measure_sustain(args: argparse.Namespace, scenario: Path) -> dict[str, Any]:
+    """20 aircraft at ``--sustain-rate`` messages/s in all for ``--sustain-s`` seconds while the planner replans
+    every ``--replan-s``: what the radar sent against what the planner received, dropped or rejected (its last
+    ``planner: radar`` status, taken once the stream has ended)."""
+    per_aircraft = args.sustain_rate / 20
+    params = coarse_params(f"    min_aircraft: 20\n    replan_period_s: {args.replan_s}\n"
+                           f"    min_replan_interval_s: {args.replan_s}\n")
+    session, planner = with_planner(args, "sustain", scenario, params)
+    row: dict[str, Any] = {"messages_per_s": args.sustain_rate, "seconds": args.sustain_s,
+                           "replan_period_s": args.replan_s}
+    try:
+        watch = session.snippet("watch", WATCH)
+        watch.wait_for("listening", 30)
+        radar = session.snippet("radar", STREAM, backend=True, scenario=str(scenario), limit=20, rate=per_aircraft,
+                                mode="hold", radius=0.5, delay=1.0)
+        if radar.wait_for("FIRST ", 60) is None:
+            row["error"] = "the radar did not start"
+            return row
+        time.sleep(args.sustain_s)
+        radar.stop()
+        time.sleep(3.0)  # the planner's radar status comes at 1 Hz: one after the stream's end
+        sent = [line for _, line in radar.lines if line.startswith("SENT ")]
+        status = [line for _, line in watch.lines if line.startswith("RADAR ")]
+        if not sent or not status:
+            row["error"] = "no SENT or no radar status line"
+            return row
+        _, count, elapsed = sent[-1].split()[1:]
+        counts = parse_radar(status[-1])
+        row |= {"sent": int(count), "sent_over_s": float(elapsed), "achieved_per_s": int(count) / float(elapsed),
+                "received": counts.get("received"), "accepted": counts.get("accepted"),
+                "dropped": counts.get("dropped"), "rejected": counts.get("rejected"),
+                "plans": sum(" plan #" in line for _, line in planner.lines),
+                "planner_alive": planner.proc.poll() is None}
+        # the radar's count is its last once-a-second line before the stop: the planner may have received more
+        row["unaccounted"] = max(0, row["sent"] - (row["received"] or 0))
+        return row
+    finally:
+        session.close()
 
 
 def measure_soak(args: argparse.Namespace, scenario: Path, minutes: float) -> dict[str, Any]:
@@ -714,6 +765,17 @@ def write_markdown(res: dict[str, Any], path: Path) -> None:
                   "storage files | exit |", "|---|---|---|---|---|---|---|",
                   f"| {rec['sent_before_kill']} | {rec['kept']} | {rec['lost_messages']} | **{rec['lost_s']:.2f}** | "
                   f"{rec['max_gap_s']:.3f} | {len(rec['storage_files'])} | {rec['recorder_exit']} |"]
+    sus = res.get("sustain")
+    lines += ["", "## 5. Sustained radar while replanning (20 aircraft)", ""]
+    if not sus or "sent" not in sus:
+        lines.append("Not run." if not sus else f"Failed: {sus.get('error')}")
+    else:
+        lines += [f"{sus['messages_per_s']:g} messages/s in all for {sus['seconds']:g} s, replans every "
+                  f"{sus['replan_period_s']:g} s; the planner's last `planner: radar` status after the stream ended.",
+                  "", "| sent | achieved /s | received | unaccounted | dropped | rejected | plans | planner alive |",
+                  "|---|---|---|---|---|---|---|---|",
+                  f"| {sus['sent']} | {sus['achieved_per_s']:.0f} | {sus['received']} | **{sus['unaccounted']}** | "
+                  f"{sus['dropped']} | {sus['rejected']} | {sus['plans']} | {sus['planner_alive']} |"]
     lines += ["", "![service](service.png)", ""]
     path.write_text("\n".join(lines), encoding="utf-8")
 
@@ -785,7 +847,9 @@ def main(argv: list[str] | None = None) -> int:
     p.add_argument("--record-s", type=float, default=30.0, help="recording time before the SIGKILL [s]")
     p.add_argument("--plan-timeout", type=float, default=240.0, help="wait this long for the first plan [s]")
     p.add_argument("--time-limit", type=float, default=2700.0, help="whole benchmark [s]")
-    p.add_argument("--skip", default="", help="comma-separated: burst, rate, record, soak")
+    p.add_argument("--sustain-rate", type=float, default=1000.0, help="sustained radar messages/s in all")
+    p.add_argument("--sustain-s", type=float, default=60.0, help="how long the sustained radar runs [s]")
+    p.add_argument("--skip", default="", help="comma-separated: burst, rate, sustain, record, soak")
     p.add_argument("--out", type=Path, default=Path(__file__).resolve().parent / "service")
     p.add_argument("--replot", action="store_true", help="rewrite results.md and service.png from results.json")
     args = p.parse_args(argv)
@@ -809,7 +873,7 @@ def main(argv: list[str] | None = None) -> int:
                                                       " " + " ".join(argv if argv is not None else sys.argv[1:]))
     res: dict[str, Any] = {"command": command, "backend": args.backend, "machine": machine(),
                            "date": dt.datetime.now().isoformat(timespec="seconds"), "load": {}, "reduced": [],
-                           "burst": [], "rate": [], "soak": None, "record": None}
+                           "burst": [], "rate": [], "sustain": None, "soak": None, "record": None}
     res["load"]["start"] = os.getloadavg()
     log(f"service benchmark: backend {args.backend}, time limit {args.time_limit:.0f} s, load {os.getloadavg()}")
     if "burst" not in skip:
@@ -837,6 +901,14 @@ def main(argv: list[str] | None = None) -> int:
                 f"-> plan {row.get('first_radar_to_plan_s')} s, planned in {row.get('planned_in_s')} s, worst "
                 f"GetParameters {row.get('param_worst_s')} s over {row.get('param_calls')} calls")
         res["load"]["after rate"] = os.getloadavg()
+    if "sustain" not in skip:
+        scenario = generated(20, args.out / "scenarios")
+        log(f"sustain: {args.sustain_rate:g} messages/s for {args.sustain_s:g} s, replans every {args.replan_s:g} s")
+        res["sustain"] = measure_sustain(args, scenario)
+        s = res["sustain"]
+        log(f"sustain: sent {s.get('sent')} ({s.get('achieved_per_s', math.nan):.0f}/s), received {s.get('received')}, "
+            f"dropped {s.get('dropped')}, rejected {s.get('rejected')}, {s.get('plans')} plans {s.get('error', '')}")
+        res["load"]["after sustain"] = os.getloadavg()
     if "record" not in skip:
         if budget.left() < args.record_s + 60:
             res["reduced"].append("recorder kill skipped (time limit)")
