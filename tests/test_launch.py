@@ -4,11 +4,14 @@ from __future__ import annotations
 
 import contextlib
 import os
+import queue
 import signal
 import subprocess
 import sys
+import threading
 import time
 from pathlib import Path
+from typing import IO
 
 import pytest
 from dds_support import coarse_params, dds_env  # noqa: F401  (fixture)
@@ -98,23 +101,53 @@ def _launch(env: dict[str, str], tmp_path: Path, *args: str) -> subprocess.Popen
                             env=env, cwd=tmp_path, stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True)
 
 
+_OUTPUT: dict[int, queue.Queue[str | None]] = {}
+
+
+def _output(proc: subprocess.Popen[str]) -> queue.Queue[str | None]:
+    """The launcher's output lines, read by a thread (select() on a buffered pipe misses lines already read into
+    the buffer); None at end of output."""
+    if proc.pid not in _OUTPUT:
+        lines: queue.Queue[str | None] = queue.Queue()
+        assert proc.stdout is not None
+
+        def pump(stream: IO[str]) -> None:
+            for line in stream:
+                lines.put(line.rstrip("\n"))
+            lines.put(None)
+
+        threading.Thread(target=pump, args=(proc.stdout,), daemon=True).start()
+        _OUTPUT[proc.pid] = lines
+    return _OUTPUT[proc.pid]
+
+
 def _wait_lines(proc: subprocess.Popen[str], *texts: str, timeout: float = 60.0) -> list[str]:
     """Lines of the launcher's output up to the one where every text has been seen."""
-    import select
-
     lines: list[str] = []
     missing = set(texts)
     deadline = time.monotonic() + timeout
-    assert proc.stdout is not None
+    output = _output(proc)
     while missing and time.monotonic() < deadline:
-        if not select.select([proc.stdout], [], [], 0.2)[0]:
+        try:
+            line = output.get(timeout=max(0.0, min(0.2, deadline - time.monotonic())))
+        except queue.Empty:
             continue
-        line = proc.stdout.readline()
-        if not line:
+        if line is None:
+            output.put(None)
             break
-        lines.append(line.rstrip("\n"))
+        lines.append(line)
         missing = {t for t in missing if t not in line}
     assert not missing, f"missing {missing} in:\n" + "\n".join(lines[-60:])
+    return lines
+
+
+def _rest_lines(proc: subprocess.Popen[str], timeout: float = 30.0) -> list[str]:
+    """The launcher's remaining output lines, once it has exited."""
+    lines: list[str] = []
+    output = _output(proc)
+    while (line := output.get(timeout=timeout)) is not None:
+        lines.append(line)
+    output.put(None)
     return lines
 
 
@@ -186,8 +219,7 @@ def test_launch_reports_a_child_killed_by_a_signal(dds_env: dict[str, str], tmp_
         os.kill(planner[0], sig)
         lines = _wait_lines(proc, "launch: FAILED", timeout=30)
         assert proc.wait(timeout=60) == 1
-        assert proc.stdout is not None
-        lines += proc.stdout.read().splitlines()
+        lines += _rest_lines(proc)
     finally:
         if proc.poll() is None:
             proc.kill()
