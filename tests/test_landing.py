@@ -192,3 +192,23 @@ def test_initial_states_just_outside_the_airspace_are_clipped(thesis) -> None:
     a1[2] = 0.5
     with pytest.raises(ValueError, match="A1: initial position .* outside the airspace"):
         inside_airspace(thesis.with_initial_states({"A1": a1}))
+
+
+def test_initial_states_at_the_edge_are_moved_off_it(thesis) -> None:
+    """Outside: onto the airspace shrunk by the optimizer's margin. On the floor descending: up by the margin and
+    twice the height it loses before a full pull-up turns it (v^2 sin^2 gamma / (2 g cos gamma (n_v,max - cos
+    gamma))). Heading away from the face it lies on (the thesis's A2 on y = 6): left alone."""
+    from mal_planner.airspace_entry import TURN_AWAY_FACTOR, inside_airspace
+
+    a1 = thesis.aircraft_by_callsign("A1")
+    state = a1.state0.copy()
+    state[2] = 0.3004
+    moved = inside_airspace(thesis.with_initial_states({"A1": state}), margin_nm=0.001)
+    assert moved.aircraft_by_callsign("A1").state0[2] == pytest.approx(0.299)
+    state[2], state[3] = 0.0, np.radians(-1.0)
+    moved = inside_airspace(thesis.with_initial_states({"A1": state}), margin_nm=0.001)
+    v, g, gamma = a1.speed, a1.dynamics.gravity, state[3]
+    drop = (v * np.sin(gamma)) ** 2 / (2 * g * np.cos(gamma) * (a1.limits.n_v[1] - np.cos(gamma)))
+    assert moved.aircraft_by_callsign("A1").state0[2] == pytest.approx(0.001 + TURN_AWAY_FACTOR * drop, rel=1e-9)
+    assert drop > 0 and np.array_equal(moved.aircraft_by_callsign("A1").state0[3:], state[3:])
+    assert inside_airspace(thesis, margin_nm=0.001) is thesis

@@ -6,8 +6,7 @@ import logging
 import time
 from dataclasses import dataclass, field, replace
 
-import numpy as np
-
+from mal_planner.airspace_entry import inside_airspace
 from mal_planner.deadline import Deadline
 from mal_planner.errors import FailureClass, InvalidInput, TimeLimitReached
 from mal_planner.initializer.planners import PlanningFailed, known_specs
@@ -116,27 +115,6 @@ class PlanResult:
         return {t.callsign: next(iter(t.gate_times.values()), None) for t in self.initial.trajectories}
 
 
-def inside_airspace(scenario: Scenario, tolerance_nm: float | None = None) -> Scenario:
-    """Move initial positions that lie just outside the airspace (radar noise) onto its boundary.
-
-    Raises ValueError naming the aircraft when one is further out than ``tolerance_nm`` (default: twice the
-    scenario's path accuracy, 0.01 nm in the thesis).
-    """
-    if tolerance_nm is None:
-        tolerance_nm = 2.0 * Scales.of(scenario).accuracy_nm
-    moved = {}
-    for ac in scenario.aircraft:
-        clipped = np.clip(ac.position, scenario.airspace[:, 0], scenario.airspace[:, 1])
-        offset = float(np.max(np.abs(clipped - ac.position)))
-        if offset > tolerance_nm:
-            raise ValueError(f"{ac.callsign}: initial position {np.round(ac.position, 4).tolist()} nm is "
-                             f"{offset:.3f} nm outside the airspace")
-        if offset > 0.0:
-            log.warning("%s: initial position moved %.4f nm onto the airspace boundary", ac.callsign, offset)
-            moved[ac.callsign] = np.concatenate([clipped, ac.state0[3:]])
-    return scenario.with_initial_states(moved) if moved else scenario
-
-
 class Planner:
     """Keeps the optimizer between calls so that replans reuse the NLP and warm-start.
 
@@ -162,6 +140,8 @@ class Planner:
         self._deadline = Deadline(None)
         """The deadline of the plan under way (for the sequential optimizer's new initial paths)."""
         self._stopped: str | None = None
+        self._replanning = False
+        """The plan under way started from the last plan (no new initial plan yet)."""
         self.last: PlanResult | None = None
 
     def plan(self, scenario: Scenario, reuse: bool = True, start_time: float = 0.0,
@@ -176,15 +156,17 @@ class Planner:
         opts = self.options
         self._deadline = deadline = Deadline(opts.time_limit_s)
         self._stopped = None
-        scenario = self._without_landed(inside_airspace(scenario), start_time)
+        margin = opts.landing.margins.in_nm(Scales.of(scenario)).airspace_nm
+        scenario = self._without_landed(inside_airspace(scenario, margin_nm=margin), start_time)
         check_request(scenario, opts.landing.margins.in_nm(Scales.of(scenario)).hole_nm)
         timings: dict[str, float] = {}
         last = self.last
         t0 = time.perf_counter()
         warm = initial is None and reuse and opts.optimize and self._can_warm_start(scenario, start_time)
+        self._replanning = warm
         if warm:
             assert last is not None
-            initial = last.initial
+            initial = last.initial.only(set(_key(scenario)))
             log.info("replanning %.1f s after the previous plan (warm start)", start_time - last.start_time)
         elif initial is None:
             log.info("initializer %s (seed %s) on %d aircraft", opts.initializer, opts.seed, len(scenario.aircraft))
@@ -209,8 +191,11 @@ class Planner:
         last = self.last
         if last is None or last.landing is None or self._optimizer is None or start_time < last.start_time:
             return False
-        return (_key(last.scenario) == _key(scenario) and last.scenario.obstacles == scenario.obstacles
-                and last.scenario.gates == scenario.gates)
+        # The same aircraft, or some fewer (those that landed since leave; the others keep their previous plans
+        # as guesses): in closed loop an aircraft lands every landing spacing, so nearly every replan has fewer.
+        callsigns = set(_key(scenario))
+        return (bool(callsigns) and callsigns <= set(_key(last.scenario))
+                and last.scenario.obstacles == scenario.obstacles and last.scenario.gates == scenario.gates)
 
     def _without_landed(self, scenario: Scenario, start_time: float) -> Scenario:
         """Drop the aircraft whose last planned landing is (nearly) over: they leave the plan quietly."""
@@ -296,9 +281,7 @@ class Planner:
         return self._new_optimizer(scenario, guesses, joint).solve(scenario, deadline=deadline)
 
     def _joint_same_order(self, scenario: Scenario, start_time: float, deadline: Deadline) -> LandingResult:
-        last = self.last
-        assert last is not None and last.landing is not None
-        guesses = shift_guesses(last.landing, start_time - last.start_time)
+        guesses = self._previous_guesses(scenario, start_time)
         joint = replace(self.options.landing, strategy="joint")
         return self._new_optimizer(scenario, guesses, joint).solve(scenario, deadline=deadline)
 
@@ -306,24 +289,34 @@ class Planner:
         guesses = make_guesses(scenario, self._initial, self.options.landing)
         return self._new_optimizer(scenario, guesses).solve(scenario, deadline=deadline)
 
+    def _previous_guesses(self, scenario: Scenario, start_time: float) -> list[AircraftGuess]:
+        """The last plan seen from ``start_time``, of ``scenario``'s aircraft (in the last plan's landing order)."""
+        last = self.last
+        assert last is not None and last.landing is not None
+        keep = set(_key(scenario))
+        return [g for g in shift_guesses(last.landing, start_time - last.start_time) if g.callsign in keep]
+
     def _warm_attempt(self, scenario: Scenario, start_time: float, deadline: Deadline) -> LandingResult:
         last = self.last
         assert last is not None and last.landing is not None and self._optimizer is not None
-        guesses = shift_guesses(last.landing, start_time - last.start_time)
+        guesses = self._previous_guesses(scenario, start_time)
         if self._optimizer.accepts(scenario, guesses):
             return self._optimizer.solve(scenario, warm=last.landing, guesses=guesses, deadline=deadline)
-        log.info("the order of gate passages and landings changed: new NLP")
-        return self._new_optimizer(scenario, guesses).solve(scenario, deadline=deadline)
+        log.info("%s: new NLP", "the order of gate passages and landings changed"
+                 if len(guesses) == len(last.landing.trajectories) else "fewer aircraft")
+        optimizer = self._new_optimizer(scenario, guesses)
+        # Per-aircraft subproblems still warm-start from each one's previous plan; a joint NLP has a new layout.
+        warm = last.landing if optimizer.warm_by_aircraft else None
+        return optimizer.solve(scenario, warm=warm, guesses=guesses, deadline=deadline)
 
     def _cold_same_order(self, scenario: Scenario, start_time: float, deadline: Deadline) -> LandingResult:
-        last = self.last
-        assert last is not None and last.landing is not None
-        guesses = shift_guesses(last.landing, start_time - last.start_time)
+        guesses = self._previous_guesses(scenario, start_time)
         return self._new_optimizer(scenario, guesses).solve(scenario, deadline=deadline)
 
     def _fresh_initializer(self, scenario: Scenario, start_time: float, deadline: Deadline) -> LandingResult:
         opts = self.options
         self._initial = plan_initial(scenario, opts.initializer, seed=opts.seed, deadline=deadline)
+        self._replanning = False
         return self._cold_attempt(scenario, start_time, deadline)
 
     def _reseeded_attempt(self, scenario: Scenario, start_time: float, deadline: Deadline) -> LandingResult:
@@ -337,7 +330,9 @@ class Planner:
         if all(a.landing_time is not None for a in scenario.aircraft):
             log.warning("the scenario's landing times cannot be met from these states: the optimizer chooses them")
         free = replace(self.options.landing, fixed_landing_times=False)
-        guesses = make_guesses(scenario, self._initial, free)
+        # On a replan with no new initial plan, the last plan is the guess (the initial plan's times are old).
+        guesses = (self._previous_guesses(scenario, start_time) if self._replanning
+                   else make_guesses(scenario, self._initial, free))
         return self._new_optimizer(scenario, guesses, free).solve(scenario, deadline=deadline)
 
     def _verify_and_refine(self, scenario: Scenario, landing: LandingResult, timings: dict[str, float],

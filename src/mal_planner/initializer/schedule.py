@@ -16,7 +16,7 @@ from __future__ import annotations
 import itertools
 import logging
 from collections.abc import Mapping
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 
 import numpy as np
 
@@ -62,6 +62,14 @@ class LandingSchedule:
 
     def time_list(self) -> list[float]:
         return [self.times[cs] for cs in self.order]
+
+    def only(self, callsigns: set[str]) -> LandingSchedule:
+        """This schedule of ``callsigns`` alone (the others' slots left empty)."""
+        return replace(self, order=tuple(cs for cs in self.order if cs in callsigns),
+                       times={cs: t for cs, t in self.times.items() if cs in callsigns},
+                       earliest={cs: t for cs, t in self.earliest.items() if cs in callsigns},
+                       fixed=frozenset(self.fixed & callsigns),
+                       target={cs: t for cs, t in self.target.items() if cs in callsigns})
 
 
 def start_conflicts(scenario: Scenario, aircraft) -> list[tuple[Aircraft, Aircraft, float]]:

@@ -138,6 +138,13 @@ class InitialPlan:
     def landing_order(self) -> list[str]:
         return [tr.callsign for tr in self.trajectories]
 
+    def only(self, callsigns: set[str]) -> InitialPlan:
+        """This plan of ``callsigns`` alone."""
+        if all(tr.callsign in callsigns for tr in self.trajectories):
+            return self
+        return replace(self, trajectories=tuple(tr for tr in self.trajectories if tr.callsign in callsigns),
+                       schedule=None if self.schedule is None else self.schedule.only(callsigns))
+
 
 def air_lengths(dynamics: DynamicsModel, path: np.ndarray) -> np.ndarray:
     """Air distance (nm) of each segment of the polyline ``path`` (K, 3) (its length in still air); a repeated

@@ -53,8 +53,9 @@ before it (the joint NLP of everyone is the pipeline's last resort):
 
 * *another guess*: the initializer stretches the aircraft's path anew, clear of the plans made so far (the
   first guess only kept clear of the others' guesses);
-* *later landing*: where the schedule (not the scenario) set its landing time, it lands later, by half a landing
-  spacing, then one, then two (the aircraft after it move back by as much);
+* *later landing*: where the schedule (not the scenario) set its landing time, it lands as soon as it can after
+  it (a free landing time), else later by half a landing spacing, then one, then two (the aircraft after it move
+  back as far as their spacing needs);
 * *give way*: its plan alone (no intruders) shows which earlier aircraft block it; the last of them is planned
   again with that plan as an intruder, then the aircraft again against everyone;
 * *swap with the previous*: it takes the previous aircraft's landing slot, and that one is planned after it."""
@@ -81,6 +82,9 @@ class Recovery:
 
 class SequentialOptimizer:
     """The :class:`LandingOptimizer` interface (solve, refine_at, accepts) over per-aircraft subproblems."""
+
+    warm_by_aircraft = True
+    """A warm start takes each aircraft's previous plan by callsign: any earlier result with those aircraft."""
 
     def __init__(self, scenario: Scenario, guesses: list[AircraftGuess], options: LandingOptions,
                  reguess: Reguess | None = None) -> None:
@@ -313,12 +317,20 @@ class SequentialOptimizer:
             return part
 
         def later_landing() -> LandingResult | None:
-            part = None
-            for delay in LATER_BY_SPACINGS:  # fixed times a little later: cheaper and surer than a free-time NLP
-                later = _retimed(order[i], guess.landing_time + delay * scenario.landing_spacing_s)
-                part = self._solve_one(scenario, later, flown, None, None, deadline, None, options)
-                if part.success or (deadline is not None and deadline.expired()):
-                    break
+            # As little later as it can: its landing time free, no earlier than its slot (nor the spacing behind
+            # the previous one). A replan's aircraft that fell behind its plan (gusts) is seconds late, not half a
+            # spacing: the fixed delays below pushed everyone behind it back, each re-solved far from its guess.
+            soonest = guess.landing_time if earliest is None else max(guess.landing_time, earliest)
+            part = self._solve_one(scenario, _retimed(order[i], soonest), flown, None, None, deadline, soonest,
+                                   replace(options, fixed_landing_times=False))
+            if part.success:  # the time it found is its fixed time from now on (the verification checks it)
+                part.required_landing_times = {cs: self._landed(part)}
+            if not part.success or self._inaccurate(part):
+                for delay in LATER_BY_SPACINGS:  # fixed times a little later: surer than a free-time NLP
+                    later = _retimed(order[i], guess.landing_time + delay * scenario.landing_spacing_s)
+                    part = self._solve_one(scenario, later, flown, None, None, deadline, None, options)
+                    if part.success or (deadline is not None and deadline.expired()):
+                        break
             if part is not None and part.success:
                 landed = self._landed(part)
                 order[i] = _retimed(order[i], landed)

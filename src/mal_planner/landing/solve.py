@@ -193,6 +193,9 @@ class LandingOptimizer:
     Times are relative to the plan start (t = 0 at the scenario's initial states).
     """
 
+    warm_by_aircraft = False
+    """A warm start needs the previous result of this very NLP (its meshes are per phase)."""
+
     def __init__(self, scenario: Scenario, guesses: list[AircraftGuess], options: LandingOptions,
                  intruders: Sequence[Intruder] = (), earliest_landing: float | None = None,
                  scales: Scales | None = None) -> None:
