@@ -154,6 +154,11 @@ def test_replan_just_before_a_landing_drops_the_landed_aircraft(thesis) -> None:
     states = {tr.callsign: tr.state_at(t) for tr in first.trajectories()}
     second = planner.plan(thesis.with_initial_states(states), start_time=t)
     assert "A1" not in second.order and second.verified, second.failure
+    # Warm: no new initializer run; the others' previous plans were the guesses.
+    assert [tr.callsign for tr in second.initial.trajectories] == ["A2", "A3"]
+    assert second.initial.trajectories[0] is first.initial.by_callsign("A2")
+    for cs in ("A2", "A3"):
+        assert second.landing_times()[cs] + t == pytest.approx(first.landing_times()[cs], abs=1e-6)
 
 
 def test_fixed_times_out_of_nearest_first_order_plan_verified(thesis) -> None:

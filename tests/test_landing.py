@@ -153,6 +153,21 @@ def test_replan_reuses_the_nlp_and_keeps_absolute_landing_times(thesis) -> None:
     assert second.landing.nlp_iterations < first.landing.nlp_iterations
 
 
+def test_a_replans_mesh_is_the_previous_one_without_the_segments_flown() -> None:
+    """Cut once a whole segment is flown (before that: the same mesh, so a joint NLP stays cached); a sliver of a
+    segment joins the next one; past the phase's end, one segment."""
+    from mal_planner.landing.solve import mesh_after
+    from mal_planner.ocp import PhaseMesh
+
+    mesh = PhaseMesh((0.0, 0.25, 0.5, 0.75, 1.0), (6, 7, 8, 9))
+    assert mesh_after(mesh, 10.0, 110.0, 30.0) is mesh
+    cut = mesh_after(mesh, 10.0, 110.0, 36.0)  # 26 % flown: the second segment from 26 % on
+    assert cut.degrees == (7, 8, 9)
+    assert np.allclose(cut.breaks, [0.0, 24 / 74, 49 / 74, 1.0])
+    assert mesh_after(mesh, 10.0, 110.0, 80.0).degrees == (9,)  # 70 %: 5 % of the third segment left, merged
+    assert mesh_after(mesh, 10.0, 110.0, 200.0).n_segments == 1
+
+
 def test_optimizer_rebuilds_when_an_aircraft_has_passed_the_gate(thesis) -> None:
     planner = Planner(PlanOptions(seed=0, landing=replace(COARSE)))
     first = planner.plan(thesis, start_time=0.0)

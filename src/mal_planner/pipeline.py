@@ -118,14 +118,15 @@ class PlanResult:
 class Planner:
     """Keeps the optimizer between calls so that replans reuse the NLP and warm-start.
 
-    A replan (same aircraft, obstacles and gates as the last successful plan) skips the initializer: the
-    previous optimal trajectories, shifted to the new start time, are the initial guess and keep their
-    absolute landing times; the cached NLP is reused unless the order of the events changed (e.g. an
-    aircraft has passed the gate since). When a step fails, the next is tried, so a plan never gets stuck
-    on a stale state: the warm replan, then a cold solve of the same order, then a fresh initializer; and
-    where the schedule fixed the landing times (or on a replan, whose radar states may no longer reach the
-    scenario's times), a solve in which the optimizer chooses them. A first plan whose solve fails is tried
-    once more from the initializer with another seed. Aircraft within ``landed_within_turn_times`` of their last
+    A replan (the aircraft of the last successful plan or some of them, the same obstacles and gates) skips the
+    initializer: the previous optimal trajectories, shifted to the new start time (their meshes without the
+    segments flown since), are the initial guess and keep their absolute landing times; the cached NLP is reused
+    unless the order of the events or the aircraft changed (e.g. an aircraft has passed the gate or landed since).
+    When a step fails, the next is tried, so a plan never gets stuck on a stale state: the warm replan, then (its
+    radar states may no longer reach the times: an aircraft fell behind its plan) a solve in which the optimizer
+    chooses the landing times, then a cold solve of the same order, then a fresh initializer. A first plan whose
+    solve fails is tried once more from the initializer with another seed, then, where the schedule fixed the
+    landing times, with times the optimizer chooses. Aircraft within ``landed_within_turn_times`` of their last
     planned landing leave the plan quietly.
     """
 
@@ -217,8 +218,15 @@ class Planner:
         attempts: list[tuple[str, object]] = []
         # Planned one aircraft at a time, a failure falls back to the joint NLP of the same order first.
         sequential = uses_sequential(opts.landing, len(scenario.aircraft))
+        # Optimizer-chosen landing times: when the planner made the schedule, or on a replan, where the aircraft
+        # may have drifted (radar) so that the scenario's times can no longer be met: a safe plan at other
+        # times beats none (the plan reports its times; a warning says the fixed ones were given up).
+        free_fallback = opts.landing.fixed_landing_times and (warm or any(a.landing_time is None
+                                                                          for a in scenario.aircraft))
         if warm:
             attempts.append(("warm replan", self._warm_attempt))
+            if free_fallback:  # a warm replan fails mostly for an aircraft that fell behind: times, not paths
+                attempts.append(("optimizer-chosen landing times", self._free_times_attempt))
             attempts.append(("cold solve of the same order", self._cold_same_order))
             if sequential:
                 attempts.append(("joint solve of the same order", self._joint_same_order))
@@ -228,12 +236,7 @@ class Planner:
             if sequential:
                 attempts.append(("joint solve", self._joint_attempt))
             attempts.append(("solve from another initializer seed", self._reseeded_attempt))
-        # Optimizer-chosen landing times: when the planner made the schedule, or on a replan, where the aircraft
-        # may have drifted (radar) so that the scenario's times can no longer be met: a safe plan at other
-        # times beats none (the plan reports its times; a warning says the fixed ones were given up).
-        free_fallback = opts.landing.fixed_landing_times and (warm or any(a.landing_time is None
-                                                                          for a in scenario.aircraft))
-        if free_fallback:
+        if free_fallback and not warm:
             attempts.append(("optimizer-chosen landing times", self._free_times_attempt))
         landing = None
         self._initial = initial

@@ -27,6 +27,9 @@ class AircraftGuess:
     """(K, 5) x, y, z, gamma, heading (heading unwrapped)."""
     landing_time: float
     gate_time: float | None
+    shifted_by: float = 0.0
+    """Seconds by which the plan this guess was cut from had been flown (a replan, see
+    :func:`~mal_planner.landing.solve.shift_guesses`): its meshes are cut by as much (:func:`meshes_after`)."""
 
     def controls(self, model_gravity: float, speed: float) -> np.ndarray:
         """Load factors that reproduce the guess's angle rates (finite differences), clipped later."""

@@ -32,6 +32,7 @@ from mal_planner.landing.solve import (
     LandingOptions,
     LandingResult,
     layout_for,
+    meshes_after,
     split_segments,
 )
 from mal_planner.scales import Scales
@@ -165,7 +166,8 @@ class SequentialOptimizer:
                 sol = opt.solver.solve(params, guess=before.solution, meshes=mesh, warm=True, deadline=deadline)
             elif before is not None:  # a replan: the previous plan shifted in time, on its mesh
                 sol = opt.solver.solve(params, guess=phase_guesses(sub, opt.layout, [guess]),
-                                       meshes=before.solution.meshes, warm=True, deadline=deadline)
+                                       meshes=meshes_after(before.solution, guess.shifted_by), warm=True,
+                                       deadline=deadline)
             else:
                 sol = opt.solver.solve(params, deadline=deadline)
             if not sol.success and part is None and before is not None:
