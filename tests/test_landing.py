@@ -150,6 +150,8 @@ def test_replan_reuses_the_nlp_and_keeps_absolute_landing_times(thesis) -> None:
     assert second.landing.mesh_history[0].build_time == 0.0 and planner._optimizer.solver.n_builds >= builds
     for cs, t_land in first.landing_times().items():
         assert second.landing_times()[cs] + dt == pytest.approx(t_land, abs=1e-6)
+        # The schedule in the replan's clock: the node reports each aircraft's target and delay from it.
+        assert second.initial.schedule.target[cs] + dt == pytest.approx(first.initial.schedule.target[cs])
     assert second.landing.nlp_iterations < first.landing.nlp_iterations
 
 

@@ -168,6 +168,8 @@ class Planner:
         if warm:
             assert last is not None
             initial = last.initial.only(set(_key(scenario)))
+            if initial.schedule is not None:  # its times in this plan's clock (the node reports targets and delays)
+                initial = replace(initial, schedule=initial.schedule.shifted(start_time - last.start_time))
             log.info("replanning %.1f s after the previous plan (warm start)", start_time - last.start_time)
         elif initial is None:
             log.info("initializer %s (seed %s) on %d aircraft", opts.initializer, opts.seed, len(scenario.aircraft))

@@ -63,6 +63,12 @@ class LandingSchedule:
     def time_list(self) -> list[float]:
         return [self.times[cs] for cs in self.order]
 
+    def shifted(self, dt: float) -> LandingSchedule:
+        """This schedule seen ``dt`` seconds later (its times are from the initial states)."""
+        return replace(self, times={cs: t - dt for cs, t in self.times.items()},
+                       earliest={cs: t - dt for cs, t in self.earliest.items()},
+                       target={cs: t - dt for cs, t in self.target.items()})
+
     def only(self, callsigns: set[str]) -> LandingSchedule:
         """This schedule of ``callsigns`` alone (the others' slots left empty)."""
         return replace(self, order=tuple(cs for cs in self.order if cs in callsigns),
