@@ -265,7 +265,9 @@ class Planner:
 
     def _new_optimizer(self, scenario: Scenario, guesses, landing_options: LandingOptions | None = None
                        ) -> LandingOptimizer | SequentialOptimizer:
-        self._optimizer = make_optimizer(scenario, guesses, landing_options or self.options.landing, self._reguess)
+        options = landing_options or self.options.landing
+        self._optimizer = make_optimizer(scenario, guesses, replace(options, replanning=self._replanning),
+                                         self._reguess)
         return self._optimizer
 
     def _reguess(self, scenario: Scenario, callsign: str, landing_time: float, traffic, attempt: int
@@ -306,6 +308,7 @@ class Planner:
         assert last is not None and last.landing is not None and self._optimizer is not None
         guesses = self._previous_guesses(scenario, start_time)
         if self._optimizer.accepts(scenario, guesses):
+            self._optimizer.options = replace(self._optimizer.options, replanning=True)
             return self._optimizer.solve(scenario, warm=last.landing, guesses=guesses, deadline=deadline)
         log.info("%s: new NLP", "the order of gate passages and landings changed"
                  if len(guesses) == len(last.landing.trajectories) else "fewer aircraft")

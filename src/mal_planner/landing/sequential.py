@@ -59,7 +59,11 @@ before it (the joint NLP of everyone is the pipeline's last resort):
   back as far as their spacing needs);
 * *give way*: its plan alone (no intruders) shows which earlier aircraft block it; the last of them is planned
   again with that plan as an intruder, then the aircraft again against everyone;
-* *swap with the previous*: it takes the previous aircraft's landing slot, and that one is planned after it."""
+* *swap with the previous*: it takes the previous aircraft's landing slot, and that one is planned after it.
+
+On a replan (``LandingOptions.replanning``) 'later landing' comes first: there the aircraft that find no plan are
+those that fell behind the plan they fly (gusts, the guidance's lag); in the campaigns 'later landing' served 305 of
+346 aircraft that tried it, 'another guess' 14 of 389."""
 
 
 LATER_BY_SPACINGS = (0.5, 1.0, 2.0)
@@ -385,7 +389,7 @@ class SequentialOptimizer:
 
         steps = [("another guess", another_guess)]
         if schedule_made and options.fixed_landing_times:
-            steps.append(("later landing", later_landing))
+            steps.insert(0 if options.replanning else 1, ("later landing", later_landing))
         steps.append(("give way", give_way))
         if schedule_made and i > 0 and not any(r.callsign == cs and r.name == "swap with the previous"
                                                  for r in recoveries):

@@ -64,6 +64,10 @@ class LandingOptions:
     fixed_landing_times: bool = True
     """Fix the landing times at the schedule's (the scenario's where it gives them); False: the optimizer
     chooses them, subject to the minimum spacing."""
+    replanning: bool = False
+    """The guesses are the previous plan (set by :class:`mal_planner.pipeline.Planner` on replans): an aircraft that
+    finds no plan for its slot has most likely fallen behind that plan (gusts), so the sequential strategy's
+    recovery 'later landing' comes first."""
     segments: int = 4
     """Initial mesh without ``segment_turn_times``: this many segments per phase ..."""
     degree: int = 6
