@@ -6,20 +6,15 @@
 set -euo pipefail
 root="${1:-/tmp}"
 bin="$(dirname "$0")/../../.venv/bin"
-"$bin/mal-traffic" --count 200 --aircraft 2-8 --seed 2026 --layout mixed --landing-times free --wake mixed \
-    --out "$root/wake-thesis"
-"$bin/mal-campaign" "$root/wake-thesis" --out "$root/wake-thesis-out" --workers 2 --timeout-s 300 \
-    --plan-time-limit-s 240
-"$bin/mal-traffic" --count 100 --aircraft 2-8 --seed 17 --layout mixed --landing-times free --wake mixed \
-    --profile tma --out "$root/wake-tma"
-"$bin/mal-campaign" "$root/wake-tma" --out "$root/wake-tma-out" --workers 2 --timeout-s 300 --plan-time-limit-s 240
+# campaign NAME mal-traffic-options...: the scenario files in $root/NAME, then their campaign in $root/NAME-out.
+campaign() {
+  local name="$1"; shift
+  "$bin/mal-traffic" --layout mixed --wake mixed "$@" --out "$root/$name"
+  "$bin/mal-campaign" "$root/$name" --out "$root/$name-out" --workers 2 --timeout-s 300 --plan-time-limit-s 240
+}
+campaign wake-thesis --count 200 --aircraft 2-8 --seed 2026 --landing-times free
+campaign wake-tma --count 100 --aircraft 2-8 --seed 17 --landing-times free --profile tma
 # Beyond the issue: the thesis-size files with fixed landing times in half of them (the generator's fixed times keep
 # the wake minima), and terminal-area traffic of 10-20 aircraft (about 15 + 25 min on 2 cores).
-"$bin/mal-traffic" --count 200 --aircraft 2-8 --seed 2026 --layout mixed --landing-times mixed --wake mixed \
-    --out "$root/wake-thesis-fixed"
-"$bin/mal-campaign" "$root/wake-thesis-fixed" --out "$root/wake-thesis-fixed-out" --workers 2 --timeout-s 300 \
-    --plan-time-limit-s 240
-"$bin/mal-traffic" --count 40 --aircraft 10-20 --seed 18 --layout mixed --landing-times free --wake mixed \
-    --profile tma --out "$root/wake-tma-large"
-"$bin/mal-campaign" "$root/wake-tma-large" --out "$root/wake-tma-large-out" --workers 2 --timeout-s 300 \
-    --plan-time-limit-s 240
+campaign wake-thesis-fixed --count 200 --aircraft 2-8 --seed 2026 --landing-times mixed
+campaign wake-tma-large --count 40 --aircraft 10-20 --seed 18 --landing-times free --profile tma

@@ -33,12 +33,17 @@ TURN_AWAY_FACTOR = 2.0
 """An aircraft heading towards a face is kept this many times its turn-away distance from it (see the module)."""
 
 
-def turn_away_nm(ac: Aircraft, axis: int, side: int) -> float:
-    """How far ``ac`` flies towards the face of the airspace on ``side`` (-1 low, +1 high) of ``axis`` (0-2) before it
-    moves away from it again, at full load factor (0 when it is moving away already)."""
+def initial_velocity(ac: Aircraft) -> np.ndarray:
+    """``ac``'s ground velocity (nm/s) at its initial state (wind included: the dynamics model's own)."""
     state = np.asarray(ac.state0, float)
-    gamma = float(state[3])
-    velocity = np.asarray(ac.dynamics.rhs(state, np.array([0.0, math.cos(gamma)])), float)[:3]
+    return np.asarray(ac.dynamics.rhs(state, np.array([0.0, math.cos(state[3])])), float)[:3]
+
+
+def turn_away_nm(ac: Aircraft, velocity: np.ndarray, axis: int, side: int) -> float:
+    """How far ``ac``, at ``velocity`` (:func:`initial_velocity`), flies towards the face of the airspace on ``side``
+    (-1 low, +1 high) of ``axis`` (0-2) before it moves away from it again, at full load factor (0 when it is moving
+    away already)."""
+    gamma = float(ac.state0[3])
     towards = side * float(velocity[axis])
     if towards <= 0.0:
         return 0.0
@@ -76,11 +81,11 @@ def inside_airspace(scenario: Scenario, tolerance_nm: float | None = None, margi
             raise ValueError(f"{ac.callsign}: initial position {np.round(ac.position, 4).tolist()} nm is "
                              f"{offset:.3f} nm outside the airspace")
         position = clipped.copy()
-        velocity = np.asarray(ac.dynamics.rhs(ac.state0, np.array([0.0, math.cos(ac.state0[3])])), float)[:3]
+        velocity = initial_velocity(ac)
         for axis in range(3):
             for side, face in ((-1, lo[axis]), (1, hi[axis])):
                 lingers = -side * velocity[axis] * turn_time < margin_nm  # still within the margin a turn time on
-                turn = min(TURN_AWAY_FACTOR * turn_away_nm(ac, axis, side), tolerance_nm)  # more: bad luck
+                turn = min(TURN_AWAY_FACTOR * turn_away_nm(ac, velocity, axis, side), tolerance_nm)  # more: bad luck
                 clearance = (margin_nm if lingers else 0.0) + turn
                 if side * (position[axis] - face) > -clearance:
                     position[axis] = face - side * min(clearance, 0.5 * (hi[axis] - lo[axis]))
