@@ -180,6 +180,22 @@ def test_nlp_failure_is_reported() -> None:
     assert len(sol.mesh_history) == 1 and not sol.mesh_history[0].nlp_success
 
 
+def test_an_infeasible_warm_solve_is_retried_cold_unless_told_not_to() -> None:
+    """A replan's caller has a surer recovery for an infeasible warm solve than the cold retry (sequential.py)."""
+    ph = _double_integrator("bad", initial_state_lb=[0.0, 0.0], initial_state_ub=[0.0, 0.0], control_lb=-1.0,
+                            control_ub=1.0, t0_bounds=(0.0, 0.0), tf_bounds=(1.0, 1.0), mesh=PhaseMesh.uniform(2, 3))
+    prob = Problem(phases=[ph], events=lambda e, p: e[0].xf[0], events_lb=5.0)  # unreachable
+    guess = [PhaseGuess(t=[0.0, 1.0], x=[[0.0, 0.0], [0.5, 1.0]], u=[[1.0], [1.0]])]
+    statuses = {}
+    for retry in (True, False):
+        solver = OCPSolver(prob, OCPOptions(max_iter=200))
+        sol = solver.solve(guess=guess, warm=True, retry_infeasible=retry)
+        statuses[retry] = sol.mesh_history[0].status
+        assert not sol.success
+        assert solver.n_builds == (2 if retry else 1)  # the warm NLP, then the cold one only when retried
+    assert statuses[False] == "Infeasible_Problem_Detected"
+
+
 def test_scaled_units_reach_ipopt_with_the_same_numbers() -> None:
     """Bryson-Denham posed in other units (lengths x50, times x100) with the matching scales is the same NLP:
     the same IPOPT iterations and mesh, the solution in the new units. Unscaled, IPOPT sees other numbers."""

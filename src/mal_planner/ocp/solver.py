@@ -19,6 +19,9 @@ from .transcription import IterationWatch, Transcription, _bounds, _col, phase_f
 
 log = logging.getLogger("mal_planner.ocp")
 
+INFEASIBLE = "Infeasible_Problem_Detected"
+"""IPOPT's status when its restoration phase finds no point that satisfies the constraints (locally)."""
+
 MeshKey = tuple
 
 
@@ -149,6 +152,7 @@ class OCPSolver:
         refine_mesh: bool | None = None,
         warm: bool | None = None,
         deadline: Any = None,
+        retry_infeasible: bool = True,
     ) -> OCPSolution:
         """Solve, refining the mesh until the error estimate is below ``mesh_tol``.
 
@@ -158,7 +162,9 @@ class OCPSolver:
         warm-start IPOPT options on (or off) for the first solve, e.g. for a guess built from a previous
         solution shifted in time; by default they are used when ``guess`` is an :class:`OCPSolution`.
         ``deadline`` (an object with ``expired()``) stops IPOPT and the refinement when it expires; the
-        best successful mesh iteration so far is returned.
+        best successful mesh iteration so far is returned. ``retry_infeasible=False``: a warm solve that IPOPT finds
+        locally infeasible is not retried cold (a caller with a surer recovery for it, such as a replan's later
+        landing, saves the second infeasible solve).
         """
         opt = self.options
         do_refine = opt.refine if refine_mesh is None else refine_mesh
@@ -188,7 +194,8 @@ class OCPSolver:
             build_time = tr.build_time if built else 0.0
             w0 = tr.initial_guess(src)
             res = tr.solve(p, w0)
-            if not res.success and warm_now and self.options.warm_ipopt and not self.watch.stopped:
+            if (not res.success and warm_now and self.options.warm_ipopt and not self.watch.stopped
+                    and (retry_infeasible or res.status != INFEASIBLE)):
                 log.info("warm-started NLP failed (%s); retrying cold", res.status)
                 total_time += res.solve_time
                 total_iter += res.iterations
