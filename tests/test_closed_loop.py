@@ -230,3 +230,29 @@ def test_flown_plans_keep_the_replan_threshold_as_separation_margin() -> None:
     assert margins.airspace_nm > open_loop.airspace_nm
     assert m_to_ft(nm_to_m(margins.airspace_nm)) < 50.0
     assert margins.bank_rad == pytest.approx(0.1 * math.radians(45.0))
+    # between collocation points a path may enter a fifth of that airspace margin, the rest is the aircraft's stray
+    assert margins.airspace_bulge_nm == pytest.approx(0.1 * Scales.of(scenario).accuracy_nm)
+    assert open_loop.airspace_bulge_nm is None
+
+
+def test_flown_plans_keep_their_airspace_margin_between_collocation_points() -> None:
+    """Ten-aircraft closed-loop campaign, traffic-0017 (tests/data): T05's first plan flies level at the ceiling; its
+    polynomial bulged 0.0021 nm into the 0.0021-nm margin between the points, and the aircraft flying it left the
+    airspace by 2e-5 nm. The refinement now splits such segments: the path keeps all but a fifth of its margin."""
+    from mal_planner.closedloop.loop import ClosedLoop
+
+    scenario = load_scenario(ROOT / "tests" / "data" / "closed_loop_ceiling_n10.yaml")
+    wind = WindSpec.from_knots(18.500162, math.radians(150.040900), 2.0)  # the campaign's draw for it (seed 0)
+    loop = ClosedLoop(scenario, ClosedLoopOptions(sim=SimOptions(wind=wind, seed=0), radar_noise_m=30.0))
+    margins = loop.planner.options.landing.margins.in_nm(Scales.of(scenario))
+    highest = {}
+    for bulge in (None, margins.airspace_bulge_nm):
+        loop.planner.options = replace(loop.planner.options, landing=replace(
+            loop.planner.options.landing, margins=replace(loop.planner.options.landing.margins,
+                                                          airspace_bulge=None if bulge is None else 0.1)))
+        result = loop.planner.plan(loop.base, reuse=False)
+        assert result.verified
+        highest[bulge] = max(float(np.max(t.states[:, 2])) for t in result.landing.trajectories)
+    ceiling = scenario.airspace[2, 1] - margins.airspace_nm
+    assert highest[None] > ceiling + 0.5 * margins.airspace_nm  # unchecked: more than half the margin gone
+    assert highest[margins.airspace_bulge_nm] <= ceiling + margins.airspace_bulge_nm + 1e-9

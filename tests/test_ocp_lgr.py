@@ -14,7 +14,7 @@ from mal_planner.ocp import (
     lgr_weights,
 )
 from mal_planner.ocp.lgr import support_points
-from mal_planner.ocp.mesh import control_overshoot, estimate_errors, layout, path_overshoot, refine
+from mal_planner.ocp.mesh import control_overshoot, estimate_errors, layout, path_overshoot, refine, state_overshoot
 
 
 def test_known_nodes_and_weights() -> None:
@@ -121,6 +121,24 @@ def test_control_overshoot_finds_bulges_between_nodes_and_splits_them() -> None:
     assert over[1] == pytest.approx(dense.max() - 1.0, rel=0.05)
     refined = refine(mesh, np.zeros(2), 1e-6, 3, 10, split=over > 1e-3)
     assert refined.breaks == (0.0, 0.5, 0.75, 1.0) and refined.degrees == (6, 6, 6)
+
+
+def test_state_overshoot_measures_bulges_past_a_bound_between_nodes_only() -> None:
+    """A state at its upper bound at two adjacent nodes of a segment and below elsewhere bulges past it between them
+    (a plan level at the ceiling, ten-aircraft closed loop traffic-0017); an initial state given outside the bound is
+    not a bulge."""
+    mesh = PhaseMesh((0.0, 0.5, 1.0), (3, 3))
+    lay = layout(mesh)
+    x = np.zeros((lay.n_nodes, 1))
+    x[4:6, 0] = 1.0  # second segment: two adjacent nodes on the bound
+    lb, ub = np.array([-10.0]), np.array([1.0])
+    over = state_overshoot(lay, x, lb, ub)
+    from mal_planner.ocp.lgr import lagrange_matrix, support_points
+    dense = lagrange_matrix(support_points(3), np.linspace(-1, 1, 2001)) @ x[3:7, 0]
+    assert over[0, 0] == 0.0 and over[1, 0] == pytest.approx(dense.max() - 1.0, rel=0.05) and over[1, 0] > 0.05
+    x[0, 0] = 1.5  # the first node outside the bound (radar): only what the polynomial adds beyond it counts
+    assert state_overshoot(lay, x, lb, ub)[0, 0] == pytest.approx(max(0.0, (lagrange_matrix(
+        support_points(3), np.linspace(-1, 1, 2001)) @ x[0:4, 0]).max() - 1.5), abs=0.02)
 
 
 def test_path_overshoot_finds_states_past_a_path_bound_between_nodes() -> None:

@@ -64,11 +64,17 @@ class SafetyMargins:
     collocation points by up to about this; campaigns measured 0.2 deg past a 0.25 deg margin)."""
     load_factor: float = 1e-3
     """Taken off both ends of the load-factor limits (dimensionless)."""
+    airspace_bulge: float | None = None
+    """How far a path may pass the airspace less ``airspace`` between its collocation points before the mesh
+    refinement splits the segment; None: unchecked (open loop: the margin absorbs it, and the verification refines
+    where the airspace itself is crossed). Plans that are flown keep the rest of the margin for the aircraft's
+    stray (:func:`mal_planner.closedloop.loop.tracking_margins`)."""
 
     def in_nm(self, scales: Scales) -> Margins:
         unit = scales.accuracy_nm
         return Margins(self.separation * unit, self.obstacle * unit, self.clearance, self.gate * unit,
-                       self.airspace * unit, self.bank_rad, self.load_factor)
+                       self.airspace * unit, self.bank_rad, self.load_factor,
+                       None if self.airspace_bulge is None else self.airspace_bulge * unit)
 
 
 @dataclass(frozen=True)
@@ -82,6 +88,7 @@ class Margins:
     airspace_nm: float
     bank_rad: float
     load_factor: float
+    airspace_bulge_nm: float | None = None
 
     @property
     def hole_nm(self) -> float:
@@ -440,6 +447,8 @@ def _phase(ctx: _Context, k: int, who: list[int], mesh: PhaseMesh, guess_span: t
         path_lb=p_lb,
         path_ub=p_ub,
         path_overshoot_tol=p_tol,
+        state_overshoot_tol=None if margins.airspace_bulge_nm is None else
+        [v for _ in who for v in (*[margins.airspace_bulge_nm] * 3, math.inf, math.inf)],
         state_lb=x_lb,
         state_ub=x_ub,
         final_state_lb=xf_lb,

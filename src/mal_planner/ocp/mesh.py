@@ -185,6 +185,21 @@ def path_overshoot(lay: MeshLayout, t0: float, tf: float, x: np.ndarray, u: np.n
     return out
 
 
+def state_overshoot(lay: MeshLayout, x: np.ndarray, lb: np.ndarray, ub: np.ndarray) -> np.ndarray:
+    """Per segment and state (n_segments, nx): how far the state polynomial passes the state bounds between the
+    segment's points, beyond what the points themselves pass them (a given initial state may lie outside; 0 where it
+    stays within). ``x`` is (Nk, nx). The NLP holds the bounds at the points only: a polynomial that rides a bound
+    bulges past it in between."""
+    out = np.zeros((lay.mesh.n_segments, x.shape[1]))
+    for s, n in enumerate(lay.mesh.degrees):
+        o = lay.offsets[s]
+        points = x[o:o + n + 1]
+        v = lagrange_matrix(support_points(n), np.linspace(-1.0, 1.0, OVERSHOOT_SAMPLES_PER_POINT * n + 1)) @ points
+        at_points = np.maximum(np.max(np.maximum(lb - points, points - ub), axis=0), 0.0)
+        out[s] = np.maximum(np.max(np.maximum(lb - v, v - ub), axis=0) - at_points, 0.0)
+    return out
+
+
 SegmentErrors = dict[tuple[float, float], tuple[int, float]]
 """A phase's segments by their breaks (rounded) -> (degree, estimated error), to compare mesh iterations."""
 

@@ -98,6 +98,9 @@ class Phase:
     solution's interpolants (path units; None or inf: not checked). Segments that pass by more are halved in
     the mesh refinement: a path that rides an obstacle's corner cuts it between the points, and the cut only
     shrinks with the points' spacing."""
+    state_overshoot_tol: Sequence[float] | float | None = None
+    """How far each state's polynomial may pass ``state_lb``/``state_ub`` between the points where the NLP holds
+    them (state units; None or inf: not checked); segments that pass by more are halved in the mesh refinement."""
     state_lb: Sequence[float] | float | None = None
     state_ub: Sequence[float] | float | None = None
     control_lb: Sequence[float] | float | None = None

@@ -11,7 +11,7 @@ from typing import Any
 import casadi as ca
 import numpy as np
 
-from .mesh import control_overshoot, estimate_errors, path_overshoot, refine, segment_errors
+from .mesh import control_overshoot, estimate_errors, path_overshoot, refine, segment_errors, state_overshoot
 from .nodes import midpoint_functions, node_functions
 from .problem import PhaseGuess, PhaseMesh, Problem
 from .solution import MeshIteration, OCPSolution, PhaseSolution
@@ -298,12 +298,18 @@ class OCPSolver:
 
     def _cutting_segments(self, sol: OCPSolution, params: np.ndarray) -> list[np.ndarray]:
         """Per phase, the segments whose interpolants pass a path bound by more than the phase's
-        ``path_overshoot_tol`` between the points where the NLP holds it."""
+        ``path_overshoot_tol``, or a state bound by more than its ``state_overshoot_tol``, between the points where
+        the NLP holds it."""
         out = []
         for i, (ph, ps) in enumerate(zip(self.problem.phases, sol.phases, strict=True)):
+            flags = np.zeros(ps.layout.mesh.n_segments, bool)
+            x_tol = _bounds(ph.state_overshoot_tol, ph.nx, np.inf)
+            if np.any(np.isfinite(x_tol)):
+                b = ph.bounds()
+                flags |= np.any(state_overshoot(ps.layout, ps.x, b["x_lb"], b["x_ub"]) > x_tol, axis=1)
             tol = _bounds(ph.path_overshoot_tol, self._funcs[i].size1_out(2), np.inf)
             if not np.any(np.isfinite(tol)):
-                out.append(np.zeros(ps.layout.mesh.n_segments, bool))
+                out.append(flags)
                 continue
 
             def path(x: np.ndarray, u: np.ndarray, t: np.ndarray, i: int = i) -> np.ndarray:
@@ -311,8 +317,8 @@ class OCPSolver:
 
             b_lb = _bounds(ph.path_lb, tol.size, -np.inf)
             b_ub = _bounds(ph.path_ub, tol.size, np.inf)
-            out.append(path_overshoot(ps.layout, ps.t0, ps.tf, ps.x, ps.u[:-1], path, b_lb, b_ub,
-                                      np.where(np.isfinite(tol), tol, np.inf)))
+            out.append(flags | path_overshoot(ps.layout, ps.t0, ps.tf, ps.x, ps.u[:-1], path, b_lb, b_ub,
+                                              np.where(np.isfinite(tol), tol, np.inf)))
         return out
 
     def _make_solution(self, tr: Transcription, res, params: np.ndarray) -> OCPSolution:
