@@ -146,6 +146,29 @@ def test_a_failed_plan_never_leaves_the_planner_stuck(thesis) -> None:
     assert again.verified, again.verification.reasons
 
 
+def test_a_replan_starts_over_only_after_a_failed_replan(thesis, monkeypatch: pytest.MonkeyPatch) -> None:
+    """A failing replan tries the warm start and optimizer-chosen landing times only (the aircraft keep the plans
+    they fly); the next replan, after that failure, also starts over (cold, joint, fresh initializer)."""
+    planner = Planner(PlanOptions(seed=0, landing=COARSE))
+    assert planner.plan(thesis, start_time=0.0).verified
+    tried: list[str] = []
+
+    def failing(name: str):
+        def attempt(self, scenario, start_time, deadline):
+            tried.append(name)
+            raise RuntimeError("no plan")
+        return attempt
+
+    for name in ("_warm_attempt", "_free_times_attempt", "_cold_same_order", "_joint_same_order", "_fresh_initializer"):
+        monkeypatch.setattr(Planner, name, failing(name))
+    assert planner.plan(thesis, start_time=2.0).failure is not None
+    assert tried == ["_warm_attempt", "_free_times_attempt"]
+    tried.clear()
+    assert planner.plan(thesis, start_time=4.0).failure is not None
+    assert tried[:2] == ["_warm_attempt", "_free_times_attempt"]
+    assert {"_cold_same_order", "_fresh_initializer"} <= set(tried[2:])
+
+
 def test_replan_just_before_a_landing_drops_the_landed_aircraft(thesis) -> None:
     planner = Planner(PlanOptions(seed=0, landing=COARSE))
     first = planner.plan(thesis, start_time=0.0)
