@@ -125,10 +125,9 @@ class Planner:
     When a step fails, the next is tried, so a plan never gets stuck on a stale state: the warm replan, then (its
     radar states may no longer reach the times: an aircraft fell behind its plan) a solve in which the optimizer
     chooses the landing times, then, when the replan before failed as well, a cold solve of the same order, then a
-    fresh initializer. A first plan whose
-    solve fails is tried once more from the initializer with another seed, then, where the schedule fixed the
-    landing times, with times the optimizer chooses. Aircraft within ``landed_within_turn_times`` of their last
-    planned landing leave the plan quietly.
+    fresh initializer. A first plan whose solve fails is tried once more from the initializer with another seed,
+    then, where the schedule fixed the landing times, with times the optimizer chooses. Aircraft within
+    ``landed_within_turn_times`` of their last planned landing leave the plan quietly.
     """
 
     def __init__(self, options: PlanOptions | None = None) -> None:

@@ -65,10 +65,10 @@ class SafetyMargins:
     load_factor: float = 1e-3
     """Taken off both ends of the load-factor limits (dimensionless)."""
     airspace_bulge: float | None = None
-    """How far a path may pass the airspace less ``airspace`` between its collocation points before the mesh
-    refinement splits the segment; None: unchecked (open loop: the margin absorbs it, and the verification refines
-    where the airspace itself is crossed). Plans that are flown keep the rest of the margin for the aircraft's
-    stray (:func:`mal_planner.closedloop.loop.tracking_margins`)."""
+    """How far a path may pass the airspace less ``airspace`` (and the gate's plane, where a phase keeps it on one
+    side) between its collocation points before the mesh refinement splits the segment; None: unchecked (open loop:
+    the margin absorbs it, and the verification refines where the airspace itself is crossed). Plans that are flown
+    keep the rest of the margin for the aircraft's stray (:func:`mal_planner.closedloop.loop.tracking_margins`)."""
 
     def in_nm(self, scales: Scales) -> Margins:
         unit = scales.accuracy_nm
