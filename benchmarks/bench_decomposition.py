@@ -22,7 +22,8 @@ from pathlib import Path
 
 from mal_planner.campaign.traffic import TrafficSpec, generate_one
 from mal_planner.landing import LandingOptions
-from mal_planner.pipeline import Planner, PlanOptions
+from mal_planner.options import PlanOptions
+from mal_planner.pipeline import Planner
 from mal_planner.scenario import Scenario, load_scenario, scenario_from_text
 
 REPO = Path(__file__).resolve().parents[1]

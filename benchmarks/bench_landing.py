@@ -19,7 +19,8 @@ import numpy as np
 
 from mal_planner.initializer import plan_initial
 from mal_planner.landing import LandingOptions
-from mal_planner.pipeline import Planner, PlanOptions
+from mal_planner.options import PlanOptions
+from mal_planner.pipeline import Planner
 from mal_planner.scenario import load_scenario
 
 

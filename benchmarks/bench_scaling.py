@@ -295,9 +295,9 @@ def child_replan(scenario_path: str, time_limit: float, step: float, count: int)
     import numpy as np
 
     from mal_planner.pipeline import Planner
-    from mal_planner.ros.plan_scenario import build_plan_scenario
-    from mal_planner.ros.state_store import Track
     from mal_planner.scenario import load_scenario
+    from mal_planner.service.inputs import build_plan_scenario
+    from mal_planner.service.tracks import Track
 
     capture = _Capture()
     base = load_scenario(scenario_path)

@@ -279,7 +279,7 @@ STREAM = """
 import math, time
 from mal_planner.ros.transport import create_node
 from mal_planner.ros.convert import planner_to_aircraft_state
-from mal_planner.ros.state_store import extrapolate
+from mal_planner.service.tracks import extrapolate
 from mal_planner.scenario import load_scenario
 node = create_node("bench_radar")
 pub = node.create_publisher("mal_msgs/msg/AircraftState", "radar/tracks", 10)

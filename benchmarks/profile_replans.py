@@ -18,7 +18,7 @@ import math
 import pstats
 from pathlib import Path
 
-from mal_planner.closedloop.campaign import drawn_wind
+from mal_planner.campaign.closed_loop import drawn_wind
 from mal_planner.closedloop.disturbances import WindSpec
 from mal_planner.closedloop.loop import ClosedLoop, ClosedLoopOptions
 from mal_planner.closedloop.simulator import SimOptions

@@ -17,7 +17,8 @@ from dds_support import SRC, dds_env  # noqa: F401  (fixture)
 from mal_planner.closedloop import ClosedLoopOptions, FlightSimulator, Reference, SimOptions, WindSpec
 from mal_planner.closedloop.loop import run_closed_loop
 from mal_planner.closedloop.metrics import measure
-from mal_planner.pipeline import PlanOptions, plan
+from mal_planner.options import PlanOptions
+from mal_planner.pipeline import plan
 from mal_planner.scales import Scales
 from mal_planner.scenario import load_scenario, parse_scenario
 from mal_planner.units import m_to_ft, nm_to_m
@@ -186,7 +187,7 @@ def test_reference_carries_on_along_its_final_line() -> None:
 
 
 def test_the_track_filter_smooths_radar_noise_against_the_plan_and_keeps_its_estimate_across_replans() -> None:
-    from mal_planner.closedloop.tracker import DeviationFilter
+    from mal_planner.service.track_filter import DeviationFilter
 
     plan = Reference(np.array([0.0, 100.0]), np.array([[0.0, 4.0, 0.1, 0.0, -np.pi / 2],
                                                       [0.0, 0.0, 0.1, 0.0, -np.pi / 2]]))

@@ -16,7 +16,8 @@ from mal_planner.initializer import MultiRRT, PlanningFailed, Sequencer
 from mal_planner.initializer.collision import CollisionChecker
 from mal_planner.initializer.ompl_planners import available_ompl_planners
 from mal_planner.initializer.planners import InitializerTimeout, make_planner
-from mal_planner.pipeline import Planner, PlanOptions
+from mal_planner.options import PlanOptions
+from mal_planner.pipeline import Planner
 from mal_planner.scenario import load_scenario
 
 SCENARIOS = Path(__file__).resolve().parents[1] / "scenarios"
@@ -108,8 +109,8 @@ def test_fallback_initializer_out_of_time_is_a_timeout_naming_it(thesis, monkeyp
 
 def test_node_reports_the_initializer_timeout_as_a_failed_plan(thesis) -> None:
     """The node's plan step (run on a stand-in for the node: no DDS) answers a failure carrying the reason."""
-    from mal_planner.ros.plan_scenario import PlanInputs
     from mal_planner.ros.planner_node import PlanJob, PlannerNode
+    from mal_planner.service.inputs import PlanInputs
 
     options = PlanOptions(seed=0, time_limit_s=1e-6)
     failed: list[tuple[str, str | None]] = []

@@ -13,15 +13,16 @@ import pytest
 from test_verification import straight_level
 
 from mal_planner.errors import InfeasibleRequest
-from mal_planner.initializer.schedule import check_request, make_schedule
-from mal_planner.initializer.timing import earliest_landing_times, reachable_lower_bound
 from mal_planner.landing import LandingOptions
 from mal_planner.landing.guess import straight_line_guess
 from mal_planner.landing.solve import LandingOptimizer, published_times
 from mal_planner.ocp import PhaseMesh, PhaseSolution
 from mal_planner.ocp.mesh import layout as mesh_layout
-from mal_planner.pipeline import Planner, PlanOptions
+from mal_planner.options import PlanOptions
+from mal_planner.pipeline import Planner
 from mal_planner.scenario import load_scenario, parse_scenario, scenario_from_text
+from mal_planner.sequencing.schedule import check_request, make_schedule
+from mal_planner.sequencing.timing import earliest_landing_times, reachable_lower_bound
 from mal_planner.verification import verify
 
 COARSE = LandingOptions(mesh_tol=1e-4)

@@ -17,9 +17,9 @@ from mal_planner.geo import adsb
 from mal_planner.geo.runways import UnknownRunwayError, runway, runways
 from mal_planner.ros.bagio import STATE_TYPE, open_reader
 from mal_planner.ros.convert import aircraft_state_to_planner
-from mal_planner.ros.state_store import Track as RadarTrack
-from mal_planner.ros.state_store import check_track
 from mal_planner.scenario import load_scenario
+from mal_planner.service.tracks import Track as RadarTrack
+from mal_planner.service.tracks import check_track
 from mal_planner.units import ft_to_nm, kt_to_nm_per_s
 
 SCENARIO = "scenarios/cdg_1443.yaml"

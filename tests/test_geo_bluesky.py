@@ -14,7 +14,8 @@ import pytest
 
 from mal_planner.geo import GeoFrame
 from mal_planner.geo.bluesky import scn_lines, tas_to_cas_kt, write_scn
-from mal_planner.pipeline import PlanOptions, plan
+from mal_planner.options import PlanOptions
+from mal_planner.pipeline import plan
 from mal_planner.scenario import load_scenario
 from mal_planner.units import METRES_PER_NM, ft_to_m, nm_to_ft
 

@@ -19,7 +19,8 @@ from mal_planner.geo.bluesky import (
     wind_command,
 )
 from mal_planner.geo.bluesky_import import ScnError, initial_aircraft, read_creates
-from mal_planner.pipeline import PlanOptions, plan
+from mal_planner.options import PlanOptions
+from mal_planner.pipeline import plan
 from mal_planner.scenario import GeoAircraftConfig, load_scenario
 from mal_planner.units import nm_per_s_to_kt
 

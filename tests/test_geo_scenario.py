@@ -51,7 +51,8 @@ def test_thesis_geodetic_is_the_thesis(scenarios) -> None:
 
 @pytest.fixture(scope="module")
 def plans(scenarios):
-    from mal_planner.pipeline import PlanOptions, plan
+    from mal_planner.options import PlanOptions
+    from mal_planner.pipeline import plan
 
     return tuple(plan(sc, PlanOptions(seed=0)) for sc in scenarios)
 

@@ -11,7 +11,8 @@ import pytest
 from mal_planner.landing import LandingOptions, plan_layout
 from mal_planner.landing.solve import LandingOptimizer, make_guesses, split_segments
 from mal_planner.ocp import PhaseMesh
-from mal_planner.pipeline import Planner, PlanOptions, plan
+from mal_planner.options import PlanOptions
+from mal_planner.pipeline import Planner, plan
 from mal_planner.scales import Scales
 from mal_planner.scenario import load_scenario
 

@@ -11,6 +11,7 @@ from mal_planner.options import (
     BY_NAME,
     DEFAULTS,
     PLAN_OPTIONS,
+    PlanOptions,
     add_arguments,
     build_plan_options,
     check_values,
@@ -18,7 +19,6 @@ from mal_planner.options import (
     to_campaign,
     values_from_args,
 )
-from mal_planner.pipeline import PlanOptions
 
 
 def test_every_default_passes_its_own_check() -> None:

@@ -10,7 +10,8 @@ from dataclasses import replace
 import pytest
 
 from mal_planner.errors import InfeasibleRequest
-from mal_planner.pipeline import Planner, PlanOptions
+from mal_planner.options import PlanOptions
+from mal_planner.pipeline import Planner
 from mal_planner.ros.plan_process import PlanningProcessDied, PlanProcess
 from mal_planner.scenario import load_scenario
 

@@ -127,7 +127,7 @@ CLIENT = """
 import json
 from mal_planner.ros.transport import create_node
 from mal_planner.ros.convert import planner_to_aircraft_state, msg_to_time
-from mal_planner.ros.state_store import extrapolate
+from mal_planner.service.tracks import extrapolate
 from mal_planner.scenario import load_scenario
 node = create_node("client")
 trigger = node.create_client("std_srvs/srv/Trigger", "plan")
@@ -448,9 +448,9 @@ def test_params_file_errors_are_one_line(tmp_path: Path, caplog: pytest.LogCaptu
 def test_plan_scenario_extrapolates_and_adds_unknown_aircraft() -> None:
     import numpy as np
 
-    from mal_planner.ros.plan_scenario import build_plan_scenario
-    from mal_planner.ros.state_store import Track
     from mal_planner.scenario import load_scenario
+    from mal_planner.service.inputs import build_plan_scenario
+    from mal_planner.service.tracks import Track
 
     sc = load_scenario(SCENARIO)
     a1 = sc.aircraft_by_callsign("A1")
@@ -479,11 +479,11 @@ def test_plan_scenario_uses_the_radars_wake_categories() -> None:
 
     import numpy as np
 
-    from mal_planner.initializer.schedule import landing_spacing
-    from mal_planner.ros.plan_scenario import build_plan_scenario
-    from mal_planner.ros.state_store import Track
     from mal_planner.scenario import load_scenario
-    from mal_planner.sequencing.wake import wake_distance_nm
+    from mal_planner.sequencing.schedule import landing_spacing
+    from mal_planner.service.inputs import build_plan_scenario
+    from mal_planner.service.tracks import Track
+    from mal_planner.wake import wake_distance_nm
 
     sc = replace(load_scenario(SCENARIO), wake="icao")  # the file's aircraft are all M
     a1 = sc.aircraft_by_callsign("A1")
@@ -509,9 +509,9 @@ def test_plan_scenario_leaves_out_an_aircraft_that_cannot_stay_inside_the_airspa
     """The main job's replan: A2 (climbing at 5 deg) at the ceiling cannot stay inside; it is left out with the
     reason, like an aircraft outside the airspace, and the others are planned."""
 
-    from mal_planner.ros.plan_scenario import build_plan_scenario
-    from mal_planner.ros.state_store import Track
     from mal_planner.scenario import load_scenario
+    from mal_planner.service.inputs import build_plan_scenario
+    from mal_planner.service.tracks import Track
 
     sc = load_scenario(SCENARIO)
     tracks = {a.callsign: Track(a.callsign, 0.0, a.state0.copy(), a.speed) for a in sc.aircraft}
@@ -534,8 +534,8 @@ def test_check_track_rejects_tracks_implausible_in_context() -> None:
     """Issue 10: plausible alone, but not for this aircraft (speed), below ground, stale or in the future."""
     import numpy as np
 
-    from mal_planner.ros.state_store import Track, check_track
     from mal_planner.scenario import load_scenario
+    from mal_planner.service.tracks import Track, check_track
 
     sc = load_scenario(SCENARIO)
     a1 = sc.aircraft_by_callsign("A1")

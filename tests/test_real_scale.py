@@ -16,7 +16,8 @@ from mal_planner.initializer.frame import RunwayFrame
 from mal_planner.landing.solve import within_limits
 from mal_planner.ocp import PhaseMesh
 from mal_planner.ocp.mesh import refine, segment_errors
-from mal_planner.pipeline import Planner, PlanOptions
+from mal_planner.options import PlanOptions
+from mal_planner.pipeline import Planner
 from mal_planner.scales import Scales, level_turn_radius
 from mal_planner.scenario import Scenario, load_scenario
 

@@ -194,8 +194,8 @@ print("RCLPY " + json.dumps(out), flush=True)
 def test_rclpy_subscriber_and_client(planner: Planner) -> None:
     """Plain rclpy: the latched plan arrives with rosidl's type hash; a what-if PlanLanding call is answered
     and does not republish the radar plan."""
-    from mal_planner.ros.state_store import extrapolate
     from mal_planner.scenario import load_scenario
+    from mal_planner.service.tracks import extrapolate
 
     states = []  # A1 and A3 of the scenario flown 30 s straight on, SI units (as the radar would see them)
     for a in load_scenario(REPO / "scenarios" / "thesis.yaml").aircraft:

@@ -7,12 +7,13 @@ import math
 
 import pytest
 
-from mal_planner.campaign.traffic import TMA, TrafficSpec, generate_one
-from mal_planner.initializer.schedule import landing_spacing
+from mal_planner.campaign.traffic import TrafficSpec, generate_one
 from mal_planner.landing.pairs import PairScreen
 from mal_planner.landing.problem import SafetyMargins
+from mal_planner.profiles import TMA
 from mal_planner.scales import Scales
 from mal_planner.scenario import load_scenario
+from mal_planner.sequencing.schedule import landing_spacing
 from mal_planner.verification import Tolerances
 
 

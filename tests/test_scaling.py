@@ -13,7 +13,8 @@ from mal_planner.landing import AircraftGuess, LandingOptions, plan_layout
 from mal_planner.landing.pairs import PairScreen, all_pairs, close_unconstrained, count, screen_pairs
 from mal_planner.landing.problem import _scaled_mesh
 from mal_planner.ocp import PhaseMesh
-from mal_planner.pipeline import Planner, PlanOptions
+from mal_planner.options import PlanOptions
+from mal_planner.pipeline import Planner
 from mal_planner.scales import Scales
 from mal_planner.scenario import load_scenario
 

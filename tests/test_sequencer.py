@@ -8,8 +8,8 @@ import numpy as np
 import pytest
 
 from mal_planner.initializer.sequencer import InitialPlan, plan_initial
-from mal_planner.initializer.timing import dubins_path_length
 from mal_planner.scenario import load_scenario, parse_scenario
+from mal_planner.sequencing.timing import dubins_path_length
 
 SCENARIOS = Path(__file__).resolve().parents[1] / "scenarios"
 

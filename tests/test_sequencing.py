@@ -170,7 +170,7 @@ def test_cli_prints_cost_order_times_and_gap(capsys: pytest.CaptureFixture[str])
 
 
 def test_wake_tables_distances_and_times() -> None:
-    from mal_planner.sequencing.wake import RECAT_EU_DISTANCE_NM, wake_distance_nm, wake_spacing_s
+    from mal_planner.wake import RECAT_EU_DISTANCE_NM, wake_distance_nm, wake_spacing_s
 
     radar = 3.0
     assert wake_distance_nm("icao", "H", "L", radar) == 6.0
@@ -192,8 +192,8 @@ def test_wake_tables_distances_and_times() -> None:
 def test_scenario_wake_option_checks_the_categories() -> None:
     import yaml
 
-    from mal_planner.initializer.schedule import landing_spacing
     from mal_planner.scenario import ScenarioError, parse_scenario
+    from mal_planner.sequencing.schedule import landing_spacing
 
     scenarios = Path(__file__).resolve().parents[1] / "scenarios"
     data = yaml.safe_load((scenarios / "thesis.yaml").read_text())
@@ -223,9 +223,9 @@ def _scenario_data(name: str = "five_aircraft.yaml") -> dict:
 def test_make_schedule_goes_through_sequencing_with_the_scenario_strategy() -> None:
     """fcfs (default) lands in order of the earliest times; optimal puts the heavy that would hold the others
     back by its wake minima last, and its total delay is below first come, first served's."""
-    from mal_planner.initializer.schedule import make_schedule, planned_spacing
-    from mal_planner.initializer.timing import earliest_landing_times
     from mal_planner.scenario import parse_scenario
+    from mal_planner.sequencing.schedule import make_schedule, planned_spacing
+    from mal_planner.sequencing.timing import earliest_landing_times
 
     data = _scenario_data()
     data["separation"]["wake"] = "icao"
@@ -265,8 +265,8 @@ def test_bad_sequencing_options_are_one_line_errors(sequencing: dict, message: s
 
 def test_fixed_landing_times_closer_than_their_wake_minimum_are_refused() -> None:
     from mal_planner.errors import InfeasibleRequest
-    from mal_planner.initializer.schedule import check_request
     from mal_planner.scenario import parse_scenario
+    from mal_planner.sequencing.schedule import check_request
 
     data = _scenario_data("thesis.yaml")
     data["separation"]["wake"] = "icao"
@@ -281,7 +281,8 @@ def test_mixed_wake_scenario_plans_verified_with_the_table_spacings(tmp_path: Pa
     follower's speed (recomputed here from the published table, not taken from the planner)."""
     import json
 
-    from mal_planner.pipeline import PlanOptions, plan
+    from mal_planner.options import PlanOptions
+    from mal_planner.pipeline import plan
     from mal_planner.report import validation_report, write_outputs
     from mal_planner.scenario import load_scenario
 
@@ -312,11 +313,11 @@ def test_mixed_wake_scenario_plans_verified_with_the_table_spacings(tmp_path: Pa
 def test_free_landing_times_keep_each_pairs_wake_spacing_in_the_nlp() -> None:
     """With free landing times the NLP's landing-spacing events are each consecutive pair's spacing with wake
     (heavy behind heavy: 100 s at 0.04 nm/s), not one number for every pair."""
-    from mal_planner.initializer.schedule import planned_spacing
     from mal_planner.landing.guess import straight_line_guess
     from mal_planner.landing.problem import build_landing_problem
     from mal_planner.landing.solve import layout_for
     from mal_planner.scenario import load_scenario
+    from mal_planner.sequencing.schedule import planned_spacing
 
     scenario = load_scenario(Path(__file__).resolve().parents[1] / "scenarios" / "wake_mixed.yaml")
     order = ["B5", "B4", "B2", "B1", "B3"]
@@ -332,9 +333,9 @@ def test_time_windows_and_costs_from_the_scenario() -> None:
     """Per aircraft target, latest time and costs per second early and late reach the sequencer (defaults: target =
     earliest, no latest, 0 and 1: the total delay); a latest time no landing can meet is refused naming it."""
     from mal_planner.errors import InfeasibleRequest
-    from mal_planner.initializer.schedule import make_schedule, sequencing_problem
-    from mal_planner.initializer.timing import earliest_landing_times
     from mal_planner.scenario import parse_scenario
+    from mal_planner.sequencing.schedule import make_schedule, sequencing_problem
+    from mal_planner.sequencing.timing import earliest_landing_times
 
     data = _scenario_data()
     plain = parse_scenario(data)

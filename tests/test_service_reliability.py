@@ -23,7 +23,7 @@ RADAR = """
 import os, time
 from mal_planner.ros.transport import create_node
 from mal_planner.ros.convert import planner_to_aircraft_state
-from mal_planner.ros.state_store import extrapolate
+from mal_planner.service.tracks import extrapolate
 from mal_planner.scenario import load_scenario
 node = create_node("radar")
 pub = node.create_publisher("mal_msgs/msg/AircraftState", "radar/tracks", 100)
@@ -307,7 +307,7 @@ def test_check_track_gates() -> None:
     """Issue 22: empty frame, heading range, stamp 0, a jump it cannot fly, a stamp too far ahead of the newest."""
     import numpy as np
 
-    from mal_planner.ros.state_store import Track, check_track
+    from mal_planner.service.tracks import Track, check_track
 
     def track(stamp: float = 100.0, y: float = 5.0, heading: float = -1.57) -> Track:
         return Track("A1", stamp, np.array([0.5, y, 0.2, 0.0, heading]), 0.04)

@@ -18,9 +18,9 @@ from mal_planner.campaign.traffic import (
     wake_categories,
 )
 from mal_planner.campaign.traffic_cli import main
-from mal_planner.initializer.schedule import check_request, landing_spacing
-from mal_planner.initializer.timing import earliest_landing_times
 from mal_planner.scenario import load_scenario
+from mal_planner.sequencing.schedule import check_request, landing_spacing
+from mal_planner.sequencing.timing import earliest_landing_times
 
 
 def _write(out: Path, seed: int, *extra: str) -> list[Path]:

@@ -14,12 +14,13 @@ import yaml
 
 from mal_planner.errors import InfeasibleRequest
 from mal_planner.initializer.frame import RunwayFrame
-from mal_planner.initializer.schedule import check_request
-from mal_planner.initializer.timing import earliest_landing_times, reachable_lower_bound
 from mal_planner.landing import LandingOptions
-from mal_planner.pipeline import Planner, PlanOptions, PlanResult
+from mal_planner.options import PlanOptions
+from mal_planner.pipeline import Planner, PlanResult
 from mal_planner.report import result_to_dict
 from mal_planner.scenario import Scenario, ScenarioError, load_scenario, parse_scenario
+from mal_planner.sequencing.schedule import check_request
+from mal_planner.sequencing.timing import earliest_landing_times, reachable_lower_bound
 from mal_planner.units import kt_to_nm_per_s
 from mal_planner.verification import Tolerances, fly_all
 
@@ -174,9 +175,9 @@ def test_a_wind_given_at_run_time_reaches_every_aircraft_and_too_strong_a_wind_l
     """The node's ``wind`` topic: ``Scenario.with_wind`` puts the wind into every model; an aircraft whose airspeed
     is not above it is left out of the plan with the reason (it could not make way towards the runway)."""
     from mal_planner.ros.convert import wind_msg, wind_to_planner
-    from mal_planner.ros.plan_scenario import build_plan_scenario
-    from mal_planner.ros.state_store import Track
     from mal_planner.ros.transport.cyclone import MessageTypes
+    from mal_planner.service.inputs import build_plan_scenario
+    from mal_planner.service.tracks import Track
 
     sc = load_scenario(THESIS)
     wind = (0.0, -kt_to_nm_per_s(10.0))

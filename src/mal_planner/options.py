@@ -13,14 +13,34 @@ from __future__ import annotations
 
 import math
 from collections.abc import Callable, Mapping
-from dataclasses import dataclass, replace
-from typing import TYPE_CHECKING, Any
+from dataclasses import dataclass, field, replace
+from typing import Any
 
-if TYPE_CHECKING:
-    from mal_planner.pipeline import PlanOptions
+from mal_planner.landing.solve import LandingOptions
+from mal_planner.verification import Tolerances
 
 INT64_MAX = 2**63 - 1
 """The largest ROS 2 integer parameter: the upper end of an integer range without an upper bound."""
+
+
+@dataclass(frozen=True)
+class PlanOptions:
+    initializer: str = "multi-rrt"
+    """Path planner of the initializer: 'multi-rrt' or 'ompl:<planner>' (e.g. ompl:RRTConnect)."""
+    seed: int | None = 0
+    optimize: bool = True
+    verify: bool = True
+    landing: LandingOptions = field(default_factory=LandingOptions)
+    tolerances: Tolerances | None = None
+    """The verification's accuracy tolerances; None: the scenario's own (:meth:`Tolerances.for_scenario`)."""
+    refinement_rounds: int = 3
+    """Re-solves with a locally refined mesh where the verification finds a path constraint broken."""
+    time_limit_s: float | None = None
+    """Wall-clock limit of one whole plan, initializer included; when it runs out the best result so far is
+    returned, or :class:`InitializerTimeout` raised when there is none yet (None: no limit)."""
+    landed_within_turn_times: float = 0.4
+    """On a replan, aircraft this close to their last planned landing leave the plan (in the scenario's turn
+    times; thesis: 3 s)."""
 
 
 def _known_planner(value: str) -> str | None:
@@ -193,8 +213,6 @@ def check_values(values: Mapping[str, Any], spelling: Callable[[Option], str | N
 
 def build_plan_options(values: Mapping[str, Any], base: PlanOptions | None = None) -> PlanOptions:
     """PlanOptions from option values by name (the others: ``base``'s, else the defaults): the one mapping."""
-    from mal_planner.pipeline import PlanOptions
-
     base = base or PlanOptions()
     v = {**{o.name: _current(o, base) for o in PLAN_OPTIONS}, **values}
     landing = replace(base.landing, guess=v["guess"], strategy=v["strategy"],

@@ -4,44 +4,27 @@ from __future__ import annotations
 
 import logging
 import time
-from dataclasses import dataclass, field, replace
+from dataclasses import dataclass, replace
 
 from mal_planner.airspace_entry import inside_airspace
 from mal_planner.deadline import Deadline
 from mal_planner.errors import FailureClass, InvalidInput, TimeLimitReached
 from mal_planner.initializer.planners import PlanningFailed, known_specs
-from mal_planner.initializer.schedule import check_request
 from mal_planner.initializer.sequencer import InitialPlan, Sequencer, plan_initial
 from mal_planner.landing import LandingOptions, LandingResult
 from mal_planner.landing.guess import AircraftGuess, guess_from_initial_plan
 from mal_planner.landing.sequential import SequentialOptimizer
 from mal_planner.landing.solve import LandingOptimizer, make_guesses, make_optimizer, shift_guesses, uses_sequential
+from mal_planner.options import PlanOptions
 from mal_planner.scales import Scales
 from mal_planner.scenario import Scenario
+from mal_planner.sequencing.schedule import check_request
 from mal_planner.trajectory import Trajectory
-from mal_planner.verification import Tolerances, VerificationReport, verify
+from mal_planner.verification import VerificationReport, verify
 
 log = logging.getLogger("mal_planner")
 
 
-@dataclass(frozen=True)
-class PlanOptions:
-    initializer: str = "multi-rrt"
-    """Path planner of the initializer: 'multi-rrt' or 'ompl:<planner>' (e.g. ompl:RRTConnect)."""
-    seed: int | None = 0
-    optimize: bool = True
-    verify: bool = True
-    landing: LandingOptions = field(default_factory=LandingOptions)
-    tolerances: Tolerances | None = None
-    """The verification's accuracy tolerances; None: the scenario's own (:meth:`Tolerances.for_scenario`)."""
-    refinement_rounds: int = 3
-    """Re-solves with a locally refined mesh where the verification finds a path constraint broken."""
-    time_limit_s: float | None = None
-    """Wall-clock limit of one whole plan, initializer included; when it runs out the best result so far is
-    returned, or :class:`InitializerTimeout` raised when there is none yet (None: no limit)."""
-    landed_within_turn_times: float = 0.4
-    """On a replan, aircraft this close to their last planned landing leave the plan (in the scenario's turn
-    times; thesis: 3 s)."""
 
 
 @dataclass

@@ -71,3 +71,65 @@ class Trajectory:
             controls = np.column_stack([np.asarray(data[name], float) for name in CONTROL_NAMES])
         phase = np.asarray(data["phase"], int) if "phase" in data else None
         return cls(callsign, np.asarray(data["t"], float), states, controls, phase)
+
+class Reference:
+    """A plan to fly: positions and angles by time, sampled with one search per query."""
+
+    def __init__(self, t: np.ndarray, states: np.ndarray) -> None:
+        t = np.asarray(t, float)
+        states = np.asarray(states, float)
+        keep = np.concatenate([[True], np.diff(t) > 0])  # duplicate stamps (phase boundaries) carry no rate
+        t, states = t[keep], states[keep].copy()
+        if len(t) < 2:
+            raise ValueError("a plan needs at least two poses at distinct times")
+        states[:, 4] = np.unwrap(states[:, 4])
+        velocity = np.gradient(states[:, :3], t, axis=0)
+        rates = np.gradient(states[:, 3:5], t, axis=0)
+        self.t = t
+        self.table = np.column_stack([states, velocity, rates])  # p(3), gamma, heading, v(3), gamma', heading'
+
+    @property
+    def start(self) -> float:
+        return float(self.t[0])
+
+    @property
+    def end(self) -> float:
+        return float(self.t[-1])
+
+    def sample(self, t: float) -> np.ndarray:
+        """Row [x, y, z, gamma, heading, vx, vy, vz, gamma', heading'] at ``t``; before the plan its start, after
+        it the final state carried on along its final velocity (a late aircraft flies on down the runway's
+        centreline, the extended final approach, instead of drifting with the wind)."""
+        if t > self.t[-1]:
+            row = self.table[-1].copy()
+            row[:3] += (t - self.t[-1]) * row[5:8]
+            row[8:10] = 0.0
+            return row
+        k = int(np.clip(np.searchsorted(self.t, t) - 1, 0, len(self.t) - 2))
+        t0, t1 = self.t[k], self.t[k + 1]
+        w = min(max((t - t0) / (t1 - t0), 0.0), 1.0)
+        return (1.0 - w) * self.table[k] + w * self.table[k + 1]
+
+    def position(self, t: float) -> np.ndarray:
+        return self.sample(t)[:3]
+
+    def closest_time(self, p: np.ndarray, t: float, window_s: float) -> float:
+        """The plan's time whose position is closest to ``p``, searched within ``window_s`` of ``t`` (a plan that
+        loops passes near itself again only a turn later), on the plan's chords and on the final line beyond its
+        end. Path following flies the plan from there: the along-track error stays (a constant-airspeed aircraft
+        cannot take it out; replans move the landing times), the cross-track and height errors are taken out."""
+        p = np.asarray(p, float)[:3]
+        times = self.t
+        lo = max(int(np.searchsorted(times, t - window_s)) - 1, 0)
+        hi = min(int(np.searchsorted(times, t + window_s)) + 1, len(times))
+        if hi - lo < 2:  # the window lies wholly past the end (or before the start): the final line (the start)
+            lo, hi = (len(times) - 2, len(times)) if t > times[-1] else (0, 2)
+        a, b = self.table[lo:hi - 1, :3], self.table[lo + 1:hi, :3]
+        ab = b - a
+        u = np.clip(np.einsum("ij,ij->i", p - a, ab) / np.maximum(np.einsum("ij,ij->i", ab, ab), 1e-300), 0.0, 1.0)
+        k = int(np.argmin(np.linalg.norm(a + u[:, None] * ab - p, axis=1)))
+        s = float(times[lo + k] + u[k] * (times[lo + k + 1] - times[lo + k]))
+        if s >= times[-1]:  # on or past the end: along the final line (see :meth:`sample`)
+            v = self.table[-1, 5:8]
+            s = float(times[-1] + max(np.dot(p - self.table[-1, :3], v), 0.0) / max(float(np.dot(v, v)), 1e-300))
+        return s

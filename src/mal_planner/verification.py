@@ -30,9 +30,9 @@ from scipy.integrate import solve_ivp
 from mal_planner.dynamics import DynamicsModel, stacked_model
 from mal_planner.scales import Scales
 from mal_planner.scenario import Scenario
-from mal_planner.sequencing.wake import wake_distance_nm
 from mal_planner.trajectory import Trajectory
 from mal_planner.units import nm_to_ft
+from mal_planner.wake import wake_distance_nm
 
 
 @dataclass(frozen=True)

@@ -85,7 +85,7 @@ def plan_row(job: dict[str, Any]) -> dict[str, Any]:
         row.update(scenario_columns(scenario))
         t0 = time.perf_counter()
         if job["options"].get("closed_loop"):
-            from mal_planner.closedloop.campaign import closed_loop_row
+            from mal_planner.campaign.closed_loop import closed_loop_row
 
             row.update(closed_loop_row(scenario, job["source"], job["options"]))
             return row

@@ -4,14 +4,14 @@ from __future__ import annotations
 
 import numpy as np
 
-from mal_planner.initializer.schedule import LandingSchedule, sequencing_problem
 from mal_planner.obstacles import Superquadric
 from mal_planner.pipeline import PlanResult
 from mal_planner.report import sequence_document
 from mal_planner.scenario import Scenario
 from mal_planner.sequencing import SequencingInfeasible, first_come_first_served
-from mal_planner.sequencing.wake import categories as wake_categories
+from mal_planner.sequencing.schedule import LandingSchedule, sequencing_problem
 from mal_planner.verification import LandingGap
+from mal_planner.wake import categories as wake_categories
 
 
 def ray_clearance_nm(obstacle: Superquadric, points: np.ndarray) -> np.ndarray:
@@ -69,7 +69,7 @@ def schedule_margin_s(schedule: LandingSchedule) -> float:
 
 def fcfs_delay_s(scenario: Scenario, schedule: LandingSchedule) -> float | None:
     """Total delay (s against the targets) of first come, first served on the very problem the schedule solved
-    (:func:`~mal_planner.initializer.schedule.sequencing_problem` from its earliest times and margin): no
+    (:func:`~mal_planner.sequencing.schedule.sequencing_problem` from its earliest times and margin): no
     planning, milliseconds. None when first come, first served finds no schedule (fixed times in its way)."""
     problem = sequencing_problem(scenario, schedule.earliest, schedule_margin_s(schedule))
     try:

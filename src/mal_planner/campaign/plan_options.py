@@ -17,7 +17,7 @@ from mal_planner.options import (
 )
 
 if TYPE_CHECKING:
-    from mal_planner.pipeline import PlanOptions
+    from mal_planner.options import PlanOptions
 
 CAMPAIGN_OPTIONS = tuple(o.name for o in PLAN_OPTIONS if o.campaign is not None)
 """The plan options a campaign offers (those with a campaign key)."""

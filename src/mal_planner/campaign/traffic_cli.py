@@ -8,7 +8,6 @@ import sys
 from pathlib import Path
 
 from mal_planner.campaign.traffic import (
-    PROFILES,
     WAKE_MODES,
     WAKE_SHARES,
     WAKE_STRATEGY,
@@ -17,6 +16,7 @@ from mal_planner.campaign.traffic import (
     TrafficSpec,
     generate_one,
 )
+from mal_planner.profiles import PROFILES
 
 PROG = "mal-traffic"
 MAX_AIRCRAFT = 50
@@ -76,9 +76,9 @@ def main(argv: list[str] | None = None) -> int:
             raise TrafficError(f"--out: {args.out} is not a folder")
         if args.landing_times != "free":
             try:
-                from mal_planner.initializer.timing import earliest_landing_times  # noqa: F401
+                from mal_planner.sequencing.timing import earliest_landing_times  # noqa: F401
             except ImportError:
-                raise TrafficError("--landing-times: fixed schedules need mal_planner.initializer.timing."
+                raise TrafficError("--landing-times: fixed schedules need mal_planner.sequencing.timing."
                                    "earliest_landing_times, which this installation lacks") from None
         spec = TrafficSpec(aircraft=args.aircraft, seed=args.seed, layout=args.layout,
                            landing_times=args.landing_times,

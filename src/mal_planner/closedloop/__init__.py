@@ -10,9 +10,10 @@ The simulator node (:mod:`mal_planner.ros.radar_sim`) flies the same :class:`Fli
 """
 
 from mal_planner.closedloop.disturbances import RadarNoise, WindField, WindSpec
-from mal_planner.closedloop.guidance import GuidanceGains, Reference, guidance_controls
+from mal_planner.closedloop.guidance import GuidanceGains, guidance_controls
 from mal_planner.closedloop.loop import ClosedLoop, ClosedLoopOptions, ClosedLoopRun, run_closed_loop
 from mal_planner.closedloop.simulator import FlightSimulator, SimOptions
+from mal_planner.trajectory import Reference
 
 __all__ = ["ClosedLoop", "ClosedLoopOptions", "ClosedLoopRun", "FlightSimulator", "GuidanceGains", "RadarNoise",
            "Reference", "SimOptions", "WindField", "WindSpec", "guidance_controls", "run_closed_loop"]

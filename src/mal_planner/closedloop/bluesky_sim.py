@@ -45,7 +45,7 @@ from mal_planner.geo.bluesky import (
     waypoint_interval_s,
     wind_command,
 )
-from mal_planner.geo.frame import GeoFrame
+from mal_planner.geodesy import GeoFrame
 from mal_planner.scales import Scales
 from mal_planner.scenario import Scenario
 from mal_planner.units import m_to_ft, nm_per_s_to_kt

@@ -21,7 +21,7 @@ from mal_planner.closedloop.disturbances import DEFAULT_GUST_TAU_S, WindSpec
 from mal_planner.closedloop.loop import PLAN_TIME_LIMIT_S, ClosedLoopOptions, run_closed_loop
 from mal_planner.closedloop.metrics import ClosedLoopMetrics, measure
 from mal_planner.closedloop.simulator import LOAD_FACTOR_LAG_S, SimOptions
-from mal_planner.pipeline import PlanOptions
+from mal_planner.options import PlanOptions
 from mal_planner.scenario import ScenarioError, load_scenario
 from mal_planner.units import kt_to_nm_per_s, nm_per_s_to_kt
 

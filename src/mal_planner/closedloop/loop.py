@@ -3,7 +3,7 @@
 This is what the planner node and the simulator node do over DDS, without the transport, so that campaigns
 run hundreds of closed loops on the Dask engine. The service side is the node's: radar tracks (the simulated
 aircraft, with noise) at the radar's rate; a plan request built from them by the node's own
-:func:`~mal_planner.ros.plan_scenario.build_plan_scenario`; the node's :class:`~mal_planner.pipeline.Planner`
+:func:`~mal_planner.service.inputs.build_plan_scenario`; the node's :class:`~mal_planner.pipeline.Planner`
 (warm-started replans and their fallbacks); a replan when an aircraft strays from its plan (or periodically).
 
 Planning time is charged honestly: a replan requested at time t reaches the aircraft at t + (its CPU time, or
@@ -25,15 +25,16 @@ from dataclasses import dataclass, field, replace
 import numpy as np
 
 from mal_planner.closedloop.disturbances import RadarNoise, WindSpec
-from mal_planner.closedloop.guidance import Reference
 from mal_planner.closedloop.simulator import FlightSimulator, SimOptions
-from mal_planner.closedloop.tracker import DeviationFilter
 from mal_planner.landing.problem import SafetyMargins
-from mal_planner.pipeline import Planner, PlanOptions, PlanResult
-from mal_planner.ros.plan_scenario import build_plan_scenario
-from mal_planner.ros.state_store import Track
+from mal_planner.options import PlanOptions
+from mal_planner.pipeline import Planner, PlanResult
 from mal_planner.scales import Scales
 from mal_planner.scenario import Scenario
+from mal_planner.service.inputs import build_plan_scenario
+from mal_planner.service.track_filter import DeviationFilter
+from mal_planner.service.tracks import Track
+from mal_planner.trajectory import Reference
 
 log = logging.getLogger("mal_planner.closedloop")
 
@@ -94,7 +95,7 @@ class ClosedLoopOptions:
     """Wall-clock limit of a replan in turn times (thesis 15 s, a terminal area 28 s; the first plan has the plan
     options' limit): the aircraft fly on meanwhile, and a plan much later than that finds them elsewhere."""
     track_filter_turn_times: float = 0.5
-    """Time constant of the service's track filter (:mod:`mal_planner.closedloop.tracker`) in turn times (thesis
+    """Time constant of the service's track filter (:mod:`mal_planner.service.track_filter`) in turn times (thesis
     3.8 s: 30 m of radar noise leave 11 m); 0: raw radar tracks."""
     charge: str = "cpu"
     """What a replan costs in simulated time: "cpu", its CPU time (what it takes on a machine of its own: campaigns

@@ -24,10 +24,11 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from mal_planner.closedloop.disturbances import WindField, WindSpec
-from mal_planner.closedloop.guidance import GuidanceGains, Reference, guidance_controls
+from mal_planner.closedloop.guidance import GuidanceGains, guidance_controls
 from mal_planner.dynamics import ControlLimits, DynamicsModel
 from mal_planner.scales import Scales
 from mal_planner.scenario import Scenario
+from mal_planner.trajectory import Reference
 from mal_planner.units import ft_to_nm, m_to_ft, m_to_nm, nm_to_m
 
 STEPS_PER_TURN_TIME = 40

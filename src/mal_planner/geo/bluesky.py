@@ -22,7 +22,7 @@ from pathlib import Path
 
 import numpy as np
 
-from mal_planner.geo.frame import GeoFrame
+from mal_planner.geodesy import GeoFrame
 from mal_planner.scales import Scales
 from mal_planner.units import METRES_PER_NM, ft_to_m, m_to_ft, nm_per_s_to_kt
 

@@ -15,7 +15,7 @@ from pathlib import Path
 import numpy as np
 import yaml
 
-from mal_planner.geo.frame import LANDING_HEADING, GeoFrame
+from mal_planner.geodesy import LANDING_HEADING, GeoFrame
 from mal_planner.units import nm_per_s_to_kt
 
 _LOCAL_ONLY = ("position", "heading_deg", "speed", "flight_path_angle_deg")

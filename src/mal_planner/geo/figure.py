@@ -3,7 +3,7 @@
     python -m mal_planner.geo.figure out/cdg_1443/plan.json data/cdg_1443_tracks.csv --out docs/figures/cdg_arrivals.png
 
 ``plan.json`` of a geodetic scenario carries lat/lon/alt_ft per sample; the tracks CSV is the one
-``python -m mal_planner.geo.adsb --tracks`` writes (times from the same moment).
+``mal-adsb --tracks`` writes (times from the same moment).
 """
 
 from __future__ import annotations
@@ -78,7 +78,7 @@ def figure(plan: dict, tracks: dict[str, dict[str, np.ndarray]], title: str | No
 def main(argv: list[str] | None = None) -> int:
     p = argparse.ArgumentParser(prog="python -m mal_planner.geo.figure", description=__doc__.split("\n")[0])
     p.add_argument("plan", type=Path, help="plan.json of a geodetic scenario")
-    p.add_argument("tracks", type=Path, help="tracks CSV (python -m mal_planner.geo.adsb --tracks)")
+    p.add_argument("tracks", type=Path, help="tracks CSV (mal-adsb --tracks)")
     p.add_argument("--out", type=Path, required=True, help="PNG to write")
     p.add_argument("--title", default=None)
     args = p.parse_args(argv)

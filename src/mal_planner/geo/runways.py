@@ -19,7 +19,7 @@ from functools import cache
 
 from pymap3d.vincenty import vdist, vreckon
 
-from mal_planner.geo.frame import GeoFrame
+from mal_planner.geodesy import GeoFrame
 
 
 @dataclass(frozen=True)

@@ -26,9 +26,8 @@ from mal_planner.initializer.collision import CollisionChecker
 from mal_planner.obstacles import Gate
 from mal_planner.scales import level_turn_radius
 from mal_planner.scenario import Aircraft, Scenario
+from mal_planner.sequencing.schedule import FINAL_RADII
 
-FINAL_RADII = 3.0
-"""Length of the straight final approach, in turn radii (thesis: 0.9 nm)."""
 GATE_RADII = 1.0
 """Straight flight before and after a gate's hole, in turn radii (thesis: 0.3 nm)."""
 HOLE_SAMPLES = 9

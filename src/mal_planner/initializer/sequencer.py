@@ -2,7 +2,7 @@
 
 1. The shortest obstacle-free path of every aircraft from its start to the runway (the planner is run
    ``runs_per_aircraft`` times and the shortest path kept).
-2. The landing schedule (:mod:`mal_planner.initializer.schedule`): with fixed landing times the order
+2. The landing schedule (:mod:`mal_planner.sequencing.schedule`): with fixed landing times the order
    follows them; otherwise first come, first served by the turn-aware earliest landing time, spaced by
    the minimum landing spacing. (The thesis orders by path length and spaces later aircraft 15-30 s after
    the previous one; that is a heuristic that breaks fixed times in another order and ignores turns.)
@@ -49,11 +49,11 @@ from mal_planner.initializer.planners import (
     make_planner,
     path_length,
 )
-from mal_planner.initializer.schedule import DEFAULT_MARGIN_TURN_TIMES, LandingSchedule, make_schedule
 from mal_planner.initializer.smoothing import SmoothedSearch, greedy_shortcut, remove_repeats, smooth_path
-from mal_planner.initializer.timing import dubins_path_length, earliest_landing_times
 from mal_planner.scales import Scales
 from mal_planner.scenario import Aircraft, Scenario
+from mal_planner.sequencing.schedule import DEFAULT_MARGIN_TURN_TIMES, LandingSchedule, make_schedule
+from mal_planner.sequencing.timing import dubins_path_length, earliest_landing_times
 
 log = logging.getLogger("mal_planner.initializer")
 

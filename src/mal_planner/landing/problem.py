@@ -21,7 +21,6 @@ import casadi as ca
 import numpy as np
 
 from mal_planner.dynamics import STATE_NAMES, bank_limit_residuals
-from mal_planner.initializer.schedule import planned_spacing
 from mal_planner.landing.guess import AircraftGuess
 from mal_planner.landing.layout import PhaseLayout
 from mal_planner.landing.pairs import PhasePairs, all_pairs
@@ -29,6 +28,7 @@ from mal_planner.obstacles import Gate
 from mal_planner.ocp import Phase, PhaseGuess, PhaseMesh, Problem
 from mal_planner.scales import Scales
 from mal_planner.scenario import Aircraft, Scenario
+from mal_planner.sequencing.schedule import planned_spacing
 
 GAMMA_BOUND = math.radians(30.0)
 HEADING_BOUND = 4.0 * math.pi

@@ -22,7 +22,6 @@ from dataclasses import dataclass, replace
 
 import numpy as np
 
-from mal_planner.initializer.schedule import planned_spacing
 from mal_planner.landing.guess import AircraftGuess
 from mal_planner.landing.pairs import SAMPLES_PER_TURN_TIME, PairScreen
 from mal_planner.landing.problem import Intruder, phase_guesses
@@ -38,8 +37,9 @@ from mal_planner.landing.solve import (
 from mal_planner.ocp.solver import INFEASIBLE
 from mal_planner.scales import Scales
 from mal_planner.scenario import Scenario
-from mal_planner.sequencing.wake import wake_spacing_s
+from mal_planner.sequencing.schedule import planned_spacing
 from mal_planner.trajectory import closest_approach
+from mal_planner.wake import wake_spacing_s
 
 log = logging.getLogger("mal_planner.optimizer")
 
@@ -288,7 +288,7 @@ class SequentialOptimizer:
     @classmethod
     def _after(cls, scenario: Scenario, leader: LandingResult, follower: str) -> float:
         """The earliest landing of ``follower`` right after the aircraft planned in ``leader``: its landing plus the
-        spacing the pair needs (:func:`~mal_planner.initializer.schedule.planned_spacing`, wake included)."""
+        spacing the pair needs (:func:`~mal_planner.sequencing.schedule.planned_spacing`, wake included)."""
         lead = leader.trajectories[0].callsign
         return cls._landed(leader) + planned_spacing(scenario, scenario.aircraft_by_callsign(lead),
                                                      scenario.aircraft_by_callsign(follower))

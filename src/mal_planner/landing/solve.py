@@ -11,8 +11,6 @@ from typing import Literal
 
 import numpy as np
 
-from mal_planner.initializer.schedule import make_schedule
-from mal_planner.initializer.timing import earliest_landing_times
 from mal_planner.landing.guess import AircraftGuess, guess_from_initial_plan, straight_line_guess
 from mal_planner.landing.layout import PhaseLayout, plan_layout
 from mal_planner.landing.pairs import (
@@ -34,6 +32,8 @@ from mal_planner.landing.problem import (
 from mal_planner.ocp import MeshIteration, OCPOptions, OCPSolution, OCPSolver, PhaseMesh, PhaseSolution
 from mal_planner.scales import Scales
 from mal_planner.scenario import Scenario
+from mal_planner.sequencing.schedule import make_schedule
+from mal_planner.sequencing.timing import earliest_landing_times
 from mal_planner.trajectory import Trajectory
 
 log = logging.getLogger("mal_planner.optimizer")

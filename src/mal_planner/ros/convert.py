@@ -23,7 +23,7 @@ import numpy as np
 from mal_planner.units import PLANNER_FRAME, ft_to_m, m_per_s_to_nm_per_s, m_to_nm, nm_per_s_to_m_per_s, nm_to_m
 
 if TYPE_CHECKING:
-    from mal_planner.geo.frame import GeoFrame
+    from mal_planner.geodesy import GeoFrame
 
 __all__ = [
     "aircraft_state_to_planner",

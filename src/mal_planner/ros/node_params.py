@@ -11,11 +11,10 @@ from dataclasses import dataclass, fields
 from pathlib import Path
 from typing import Any
 
-from mal_planner.options import PLAN_OPTIONS, Option, build_plan_options
-from mal_planner.pipeline import PlanOptions
+from mal_planner.options import PLAN_OPTIONS, Option, PlanOptions, build_plan_options
 from mal_planner.ros.transport import load_params_file
 from mal_planner.sequencing import STRATEGIES
-from mal_planner.sequencing.wake import WAKE_TABLES
+from mal_planner.wake import WAKE_TABLES
 
 Check = Callable[[Any], Any]
 

@@ -24,7 +24,8 @@ from typing import TYPE_CHECKING, Any
 if TYPE_CHECKING:
     from multiprocessing.connection import Connection
 
-    from mal_planner.pipeline import PlanOptions, PlanResult
+    from mal_planner.options import PlanOptions
+    from mal_planner.pipeline import PlanResult
     from mal_planner.scenario import Scenario
 
 LOG_FORMAT = "[%(levelname)s] [%(asctime)s] [%(name)s]: %(message)s"

@@ -30,7 +30,8 @@ import numpy as np
 from mal_planner.campaign.outcome import classify
 from mal_planner.dynamics import bank_angle
 from mal_planner.errors import outcome_code
-from mal_planner.pipeline import PlanOptions, PlanResult
+from mal_planner.options import PlanOptions
+from mal_planner.pipeline import PlanResult
 from mal_planner.ros.convert import (
     aircraft_state_to_planner,
     byte_field,
@@ -43,11 +44,11 @@ from mal_planner.ros.convert import (
 from mal_planner.ros.markers import marker_array
 from mal_planner.ros.node_params import NodeParams, declare_parameters, describe, read_params_file, update_params
 from mal_planner.ros.plan_process import LOG_FORMAT, PlanProcess
-from mal_planner.ros.plan_scenario import NoFlyZoneError, PlanInputs, apply_no_fly_zone, build_plan_scenario
-from mal_planner.ros.state_store import AHEAD_TOLERANCE_S, CALLSIGN_RE, Track, TrackStore, check_track
 from mal_planner.ros.transport import QOS_DEFAULT, QOS_LATCHED, QoSProfile, create_node
 from mal_planner.scales import Scales
 from mal_planner.scenario import Scenario, ScenarioError, load_scenario
+from mal_planner.service.inputs import NoFlyZoneError, PlanInputs, apply_no_fly_zone, build_plan_scenario
+from mal_planner.service.tracks import AHEAD_TOLERANCE_S, CALLSIGN_RE, Track, TrackStore, check_track
 from mal_planner.trajectory import Trajectory
 from mal_planner.units import METRES_PER_NM, nm_per_s_to_kt
 

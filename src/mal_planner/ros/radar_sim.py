@@ -25,11 +25,11 @@ from typing import Any
 import numpy as np
 
 from mal_planner.closedloop.disturbances import RadarNoise, WindSpec
-from mal_planner.closedloop.guidance import Reference
 from mal_planner.closedloop.simulator import FlightSimulator, SimAircraft, SimOptions
 from mal_planner.ros.bagio import stop_event
 from mal_planner.ros.convert import path_to_planner, planner_to_aircraft_state, time_to_msg
 from mal_planner.scenario import Scenario, ScenarioError, load_scenario
+from mal_planner.trajectory import Reference
 from mal_planner.units import PLANNER_FRAME, kt_to_nm_per_s
 
 STATE_TYPE = "mal_msgs/msg/AircraftState"

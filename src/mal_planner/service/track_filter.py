@@ -15,7 +15,7 @@ import math
 
 import numpy as np
 
-from mal_planner.closedloop.guidance import Reference
+from mal_planner.trajectory import Reference
 
 
 class DeviationFilter:

@@ -10,12 +10,12 @@ from typing import Any
 import numpy as np
 
 from mal_planner.dynamics import make_dynamics
-from mal_planner.initializer.schedule import landing_spacing, start_conflicts, vertical_escape_problem
 from mal_planner.obstacles import Superquadric
-from mal_planner.ros.state_store import Track
 from mal_planner.scenario import Aircraft, Scenario
-from mal_planner.sequencing.wake import categories
+from mal_planner.sequencing.schedule import landing_spacing, start_conflicts, vertical_escape_problem
+from mal_planner.service.tracks import Track
 from mal_planner.units import m_to_nm, nm_per_s_to_kt
+from mal_planner.wake import categories
 
 DEFAULT_MODEL = "point_mass"
 AIRSPACE_TOL_NM = 0.05
@@ -63,7 +63,7 @@ def apply_no_fly_zone(obstacles: tuple[Superquadric, ...], msg: Any) -> tuple[tu
 
 def radar_wake(base: Scenario, category: str | None) -> str | None:
     """An aircraft's wake category (the scenario's, else its radar track's) for the wake table in use: None (the
-    worst case in each role, see :func:`~mal_planner.sequencing.wake.wake_distance_nm`) when the table does not
+    worst case in each role, see :func:`~mal_planner.wake.wake_distance_nm`) when the table does not
     know it (none given, or one of another table, e.g. a node parameter chose another table than the file's)."""
     if not category or base.wake == "none":
         return category or None

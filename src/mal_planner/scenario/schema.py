@@ -1,48 +1,30 @@
-"""Scenario files (YAML): validated on load, converted to the planner's units (nm, s, rad).
+"""The scenario file's schema (pydantic): every field, its unit, its range and its checks.
 
-The file gives angles in degrees; everything returned by :func:`load_scenario` is in radians. Any
-problem is reported as a :class:`ScenarioError` whose message is one line naming the file, the field
-and the reason.
-
-A file is local (the default: the runway frame in nm, speeds in nm/s) or places its runway on the Earth
-(``runway: {threshold: {lat, lon, elevation_ft}, course_deg}``); then aircraft may be given in lat/lon/ft
-with true tracks and speeds in kt. :func:`localize` converts such a file to the local frame (the one place,
-through :class:`mal_planner.geo.GeoFrame`) before anything else sees it; airspace, obstacles and gates
-stay in the runway frame (nm) in both kinds of file.
+Angles are in degrees, lengths in nm, speeds in nm/s (or kt and ft in a geodetic file, see
+:class:`GeoAircraftConfig`); :mod:`mal_planner.scenario.loader` converts a validated file to planner units.
 """
 
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass, replace
-from pathlib import Path
 from typing import Annotated, Any, Literal
 
 import numpy as np
-import yaml
-from pydantic import BaseModel, ConfigDict, Discriminator, Field, Tag, ValidationError, field_validator, model_validator
+from pydantic import BaseModel, ConfigDict, Discriminator, Field, Tag, field_validator, model_validator
 
-from mal_planner.dynamics import DYNAMICS_MODELS, ControlLimits, DynamicsModel, make_dynamics
-from mal_planner.geo.frame import GeoFrame
+from mal_planner.dynamics import DYNAMICS_MODELS, ControlLimits
+from mal_planner.geodesy import GeoFrame
 from mal_planner.obstacles import Gate, Superquadric, wall_with_hole
-from mal_planner.sequencing.problem import SequencingOptions, Strategy
-from mal_planner.sequencing.wake import WakeTableName
-from mal_planner.sequencing.wake import categories as wake_categories
-from mal_planner.units import ft_to_nm, kt_to_nm_per_s
+from mal_planner.scenario.sequencing import SequencingOptions, Strategy
+from mal_planner.units import kt_to_nm_per_s
+from mal_planner.wake import WakeTableName
+from mal_planner.wake import categories as wake_categories
 
 AXIS_INDEX = {"x": 0, "y": 1, "z": 2}
 
 GEODETIC_ROUND_OFF = 1e-9
 """Relative to the airspace's largest extent: how near its boundary a converted geodetic position is taken to be
 on it (the conversion's own round-off is about 1e-12 of the distance from the threshold)."""
-
-
-class ScenarioError(ValueError):
-    """A scenario that cannot be used; ``str()`` is a single line: ``file: field: reason``."""
-
-    def __init__(self, source: str, field: str, reason: str) -> None:
-        self.source, self.field, self.reason = source, field, reason
-        super().__init__(f"{source}: {field}: {reason}" if field else f"{source}: {reason}")
 
 
 Vec3 = tuple[float, float, float]
@@ -317,7 +299,7 @@ class SeparationConfig(_Strict):
     max_landing_spacing_s: float = Field(30.0, gt=0.0)
     """Largest time between successive landings the sequencer aims for."""
     wake: WakeTableName = "none"
-    """Wake-turbulence distance minima between successive landings (:mod:`mal_planner.sequencing.wake`):
+    """Wake-turbulence distance minima between successive landings (:mod:`mal_planner.wake`):
     icao (Doc 4444, categories J/H/M/L), recat-eu (A-F) or none (``landing_spacing_s`` for every pair)."""
 
     @model_validator(mode="before")
@@ -433,257 +415,3 @@ class ScenarioConfig(_Strict):
                 raise ValueError(f"aircraft[{i}].wake_category: separation.wake {self.separation.wake} needs one of "
                                  f"{', '.join(known)}, got {ac.wake_category!r}")
         return self
-
-
-@dataclass(frozen=True)
-class Aircraft:
-    """One aircraft in planner units: state0 = (x, y, z, gamma, heading) in nm and rad."""
-
-    callsign: str
-    state0: np.ndarray
-    dynamics: DynamicsModel
-    limits: ControlLimits
-    wake_category: str | None = None
-    landing_time: float | None = None
-    target_time: float | None = None
-    """The sequencer's target landing time (s; None: its earliest); see :class:`_AircraftCommon`."""
-    latest_time: float | None = None
-    cost_early: float = 0.0
-    cost_late: float = 1.0
-
-    @property
-    def speed(self) -> float:
-        return self.dynamics.speed
-
-    @property
-    def position(self) -> np.ndarray:
-        return self.state0[:3]
-
-    def heading_for_track(self, track: float, gamma: float) -> float:
-        """The state (air-relative) heading that flies the ground track ``track`` at the flight-path angle ``gamma``
-        (rad): the track itself in still air, crabbed into the wind otherwise. Gates and the runway give tracks."""
-        if not self.dynamics.has_wind:
-            return track
-        return float(self.dynamics.heading_for_track(track, gamma))
-
-
-@dataclass(frozen=True)
-class Scenario:
-    """A validated scenario in planner units (nm, s, rad)."""
-
-    name: str
-    description: str
-    aircraft: tuple[Aircraft, ...]
-    runway_state: np.ndarray
-    """(x, y, z, gamma, heading) at touchdown; the heading is the runway's course, a ground track (see
-    :meth:`runway_heading`)."""
-    airspace: np.ndarray
-    """(3, 2) array of [min, max] per axis."""
-    obstacles: tuple[Superquadric, ...]
-    gates: tuple[Gate, ...]
-    separation_nm: float
-    """The minimum distance (sphere), or the horizontal minimum when :attr:`vertical_separation_nm` is set."""
-    landing_spacing_s: float
-    max_landing_spacing_s: float
-    gravity: float
-    config: ScenarioConfig
-    """The file's configuration in the local frame (a geodetic file's converted by :func:`localize`)."""
-    source: str = "<scenario>"
-    vertical_separation_nm: float | None = None
-    """The vertical minimum of a cylindrical protected zone (separated: horizontally OR vertically); None: sphere."""
-    geo_frame: GeoFrame | None = None
-    """Where the local frame lies on the Earth, for a scenario whose runway has a threshold; None: local only."""
-    wake: str = "none"
-    """The wake-turbulence table between successive landings (``separation.wake``)."""
-    sequencing: SequencingOptions = SequencingOptions()
-    """How the order and the free landing times are decided (``sequencing:``)."""
-    wind: tuple[float, float] = (0.0, 0.0)
-    """The constant wind (w_x, w_y) in nm/s in the local frame (``wind:``); every aircraft's model carries it."""
-
-    @property
-    def separation_radius_nm(self) -> float:
-        """Radius of the smallest sphere holding the protected zone: farther apart than this is separated."""
-        return math.hypot(self.separation_nm, self.vertical_separation_nm or 0.0)
-
-    def runway_heading(self, aircraft: Aircraft) -> float:
-        """The state heading of ``aircraft`` at touchdown: the runway's course as its ground track (crabbed)."""
-        return aircraft.heading_for_track(float(self.runway_state[4]), float(self.runway_state[3]))
-
-    def final_ground_speed(self, aircraft: Aircraft) -> float:
-        """Ground speed (nm/s) of ``aircraft`` on the final approach (the runway's course and flight-path angle):
-        its airspeed in still air, else the wind triangle's (what a distance on final takes in time)."""
-        if not aircraft.dynamics.has_wind:
-            return aircraft.speed
-        gamma, track = float(self.runway_state[3]), float(self.runway_state[4])
-        return math.hypot(float(aircraft.dynamics.ground_speed_along(track, gamma)), aircraft.speed * math.sin(gamma))
-
-    def with_wind(self, wind: tuple[float, float]) -> Scenario:
-        """This scenario in another constant wind (w_x, w_y) [nm/s]: every aircraft's model carries it. The caller
-        checks that it is below every airspeed (:func:`wind_error`)."""
-        wx, wy = float(wind[0]), float(wind[1])
-        aircraft = tuple(replace(a, dynamics=a.dynamics.with_wind(wx, wy)) for a in self.aircraft)
-        return replace(self, aircraft=aircraft, wind=(wx, wy))
-
-    def aircraft_by_callsign(self, callsign: str) -> Aircraft:
-        for ac in self.aircraft:
-            if ac.callsign == callsign:
-                return ac
-        raise KeyError(callsign)
-
-    def in_airspace(self, points: np.ndarray, tol: float = 0.0) -> np.ndarray:
-        pts = np.asarray(points, dtype=float)
-        return np.all((pts >= self.airspace[:, 0] - tol) & (pts <= self.airspace[:, 1] + tol), axis=-1)
-
-    def collides(self, points: np.ndarray) -> np.ndarray:
-        """Exact containment test against every obstacle (True = inside some obstacle)."""
-        pts = np.asarray(points, dtype=float)
-        hit = np.zeros(pts.shape[:-1], dtype=bool)
-        for ob in self.obstacles:
-            hit |= ob.contains(pts)
-        return hit
-
-    def with_initial_states(self, states: dict[str, np.ndarray]) -> Scenario:
-        """A copy with some aircraft's initial states replaced (e.g. from radar); others unchanged."""
-        new = tuple(replace(a, state0=np.asarray(states[a.callsign], float)) if a.callsign in states else a
-                    for a in self.aircraft)
-        return replace(self, aircraft=new)
-
-
-def _format_location(loc: tuple[Any, ...]) -> str:
-    out = ""
-    for part in loc:
-        if isinstance(part, int):
-            out += f"[{part}]"
-        elif part in ("superquadric", "wall_with_hole", "local", "geodetic"):
-            continue  # pydantic's discriminator tag, not a field of the file
-        else:
-            out += f".{part}" if out else str(part)
-    return out
-
-
-def localize(config: ScenarioConfig) -> tuple[ScenarioConfig, GeoFrame | None]:
-    """The config in the local frame and the runway's frame on the Earth (None for a local file).
-
-    The one place where geodetic inputs become local: the runway's threshold is the origin, its landing
-    direction the heading -90 deg; aircraft given in lat/lon/ft/kt are converted by :class:`GeoFrame`.
-    """
-    if not isinstance(config.runway, GeoRunwayConfig):
-        return config, None
-    frame = config.runway.frame()
-    runway = RunwayConfig(position=(0.0, 0.0, 0.0), flight_path_angle_deg=config.runway.flight_path_angle_deg,
-                          heading_deg=-90.0)
-    airspace = np.array([config.airspace.x, config.airspace.y, config.airspace.z], dtype=float)
-    # A position given on the airspace's boundary converts to within the conversion's round-off of it (about
-    # 1e-12 of its distance from the threshold): put it back on the boundary, so the file means what it says.
-    snap = GEODETIC_ROUND_OFF * float(np.max(airspace[:, 1] - airspace[:, 0]))
-    aircraft = []
-    for ac in config.aircraft:
-        if isinstance(ac, GeoAircraftConfig):
-            ac = ac.to_local(frame)
-            p = np.array(ac.position)
-            near = (np.abs(p - airspace[:, 0]) <= snap) | (np.abs(p - airspace[:, 1]) <= snap)
-            p[near] = np.clip(p, airspace[:, 0], airspace[:, 1])[near]
-            ac = ac.model_copy(update={"position": tuple(float(v) for v in p)})
-        aircraft.append(ac)
-    return config.model_copy(update={"runway": runway, "aircraft": aircraft}), frame
-
-
-def build_scenario(config: ScenarioConfig, source: str = "<scenario>") -> Scenario:
-    """Convert a validated config to planner units and check the geometry (raises ScenarioError)."""
-    given = config
-    config, frame = localize(config)
-    obstacles: list[Superquadric] = []
-    gates = [g.to_gate() for g in config.gates]
-    for spec in config.obstacles:
-        if isinstance(spec, WallConfig):
-            pieces, gate = spec.expand()
-            obstacles.extend(pieces)
-            gates.append(gate.to_gate())
-        else:
-            obstacles.append(Superquadric(spec.name, spec.center, spec.semi_axes, spec.p))
-    airspace = np.array([config.airspace.x, config.airspace.y, config.airspace.z], dtype=float)
-    wind = (0.0, 0.0) if config.wind is None else config.wind.velocity(frame)
-    aircraft = []
-    for i, ac in enumerate(config.aircraft):
-        state0 = np.array([*ac.position, np.radians(ac.flight_path_angle_deg), np.radians(ac.heading_deg)])
-        dyn = make_dynamics(ac.model, ac.speed, gravity=config.gravity, wind_x=wind[0], wind_y=wind[1])
-        if math.hypot(*wind) >= ac.speed * math.cos(state0[3]):
-            raise ScenarioError(source, "wind.speed_kt", f"{config.wind.speed_kt:g} kt is not below aircraft[{i}] "
-                                f"{ac.callsign}'s airspeed: it could not make way against it")
-        limits = ac.limits.to_limits() if ac.limits else (
-            config.limits.to_limits() if "limits" in config.model_fields_set else dyn.default_limits)
-        aircraft.append(Aircraft(ac.callsign, state0, dyn, limits, ac.wake_category, ac.landing_time,
-                                 ac.target_time, ac.latest_time, ac.cost_early, ac.cost_late))
-        where, what = f"aircraft[{i}].position", str(list(ac.position))
-        if isinstance(geo := given.aircraft[i], GeoAircraftConfig):
-            where = f"aircraft[{i}].lat/lon/alt_ft"
-            what = (f"lat {geo.lat}, lon {geo.lon}, alt {geo.alt_ft} ft (local "
-                    f"{[round(float(v), 3) for v in state0[:3]]} nm)")
-        if not np.all((state0[:3] >= airspace[:, 0]) & (state0[:3] <= airspace[:, 1])):
-            raise ScenarioError(source, where, f"{what} is outside the airspace")
-        for ob in obstacles:
-            if ob.contains(state0[:3]):
-                raise ScenarioError(source, where, f"{what} is inside obstacle {ob.name!r}")
-    runway = np.array([*config.runway.position, np.radians(config.runway.flight_path_angle_deg),
-                       np.radians(config.runway.heading_deg)])
-    if not np.all((runway[:3] >= airspace[:, 0]) & (runway[:3] <= airspace[:, 1])):
-        raise ScenarioError(source, "runway.position", "is outside the airspace")
-    return Scenario(
-        name=config.name,
-        description=config.description,
-        aircraft=tuple(aircraft),
-        runway_state=runway,
-        airspace=airspace,
-        obstacles=tuple(obstacles),
-        gates=tuple(gates),
-        separation_nm=config.separation.distance_nm,
-        vertical_separation_nm=None if (ft := config.separation.vertical_ft) is None else ft_to_nm(ft),
-        landing_spacing_s=config.separation.landing_spacing_s,
-        max_landing_spacing_s=config.separation.max_landing_spacing_s,
-        wake=config.separation.wake,
-        sequencing=config.sequencing.options(),
-        gravity=config.gravity,
-        config=config,
-        source=source,
-        geo_frame=frame,
-        wind=wind,
-    )
-
-
-def parse_scenario(data: Any, source: str = "<scenario>") -> Scenario:
-    """Validate an already-parsed mapping (e.g. from YAML) and build the scenario."""
-    if not isinstance(data, dict):
-        raise ScenarioError(source, "", "the top level must be a mapping")
-    try:
-        config = ScenarioConfig.model_validate(data)
-    except ValidationError as exc:
-        err = exc.errors()[0]
-        msg = err["msg"].removeprefix("Value error, ")
-        raise ScenarioError(source, _format_location(err["loc"]), msg) from None
-    return build_scenario(config, source)
-
-
-def load_scenario(path: str | Path) -> Scenario:
-    """Read and validate a scenario YAML file."""
-    source = str(path)
-    try:
-        text = Path(path).read_text(encoding="utf-8")
-    except OSError as exc:
-        raise ScenarioError(source, "", f"cannot read file ({exc.strerror or exc})") from None
-    except UnicodeDecodeError as exc:
-        raise ScenarioError(source, "", f"not a text (UTF-8) file: byte {exc.start} is 0x{exc.object[exc.start]:02x}"
-                            ) from None
-    return scenario_from_text(text, source)
-
-
-def scenario_from_text(text: str, source: str = "<scenario>") -> Scenario:
-    """Validate a scenario file's text (``source`` names it in errors), as :func:`load_scenario` does."""
-    if "\x00" in text:
-        raise ScenarioError(source, "", "not a text file (it contains NUL bytes)")
-    try:
-        data = yaml.safe_load(text)
-    except yaml.YAMLError as exc:
-        mark = getattr(exc, "problem_mark", None)
-        where = f"line {mark.line + 1}" if mark is not None else ""
-        raise ScenarioError(source, where, f"invalid YAML ({getattr(exc, 'problem', None) or exc})") from None
-    return parse_scenario(data, source)

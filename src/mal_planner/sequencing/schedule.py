@@ -2,7 +2,7 @@
 
 The order and the free times come from :mod:`mal_planner.sequencing`, the one place where they are decided
 (:func:`make_schedule`): fixed landing times (the scenario's) are kept; free aircraft may land from their
-turn-aware earliest time (:mod:`mal_planner.initializer.timing`) plus a margin on, each pair at least
+turn-aware earliest time (:mod:`mal_planner.sequencing.timing`) plus a margin on, each pair at least
 :func:`landing_spacing` apart (wake turbulence included). Strategy ``fcfs`` (the default): in order of the
 earliest times, each at the earliest slot that keeps the spacing to every time taken; ``optimal``: the MILP's
 order and times of least total delay (scenario ``sequencing:``).
@@ -21,14 +21,17 @@ from dataclasses import dataclass, field, replace
 import numpy as np
 
 from mal_planner.errors import InfeasibleRequest
-from mal_planner.initializer.approach import FINAL_RADII
-from mal_planner.initializer.timing import reachable_lower_bound
 from mal_planner.scales import Scales
 from mal_planner.scenario import Aircraft, Scenario
 from mal_planner.sequencing import SequencingInfeasible, SequencingProblem, sequence
-from mal_planner.sequencing.wake import wake_spacing_s
+from mal_planner.sequencing.timing import reachable_lower_bound
+from mal_planner.wake import wake_spacing_s
 
-log = logging.getLogger("mal_planner.initializer")
+log = logging.getLogger("mal_planner.sequencing")
+
+FINAL_RADII = 3.0
+"""Length of the straight final approach every aircraft flies in file, in turn radii (thesis: 0.9 nm): the
+initializer's approach route ends with it, and the schedule spaces landings over it."""
 
 DEFAULT_MARGIN_TURN_TIMES = 2.0 / 3.0
 """Scheduled landing times sit this many turn times after the turn-aware earliest estimate (room for the
@@ -184,7 +187,7 @@ def landing_spacing(scenario: Scenario, leader: Aircraft, follower: Aircraft) ->
     S / V_l + D (1 / V_f - 1 / V_l) between the landings. With one spacing for every pair, a slow aircraft
     behind a fast one through a gate 8.5 nm out needed 103 s, not the 90 s it was given, and no plan existed.
     With ``separation.wake``, also the wake-turbulence minimum of the pair at the follower's speed
-    (:func:`mal_planner.sequencing.wake.wake_spacing_s`). The speeds are ground speeds on final
+    (:func:`mal_planner.wake.wake_spacing_s`). The speeds are ground speeds on final
     (:meth:`~mal_planner.scenario.Scenario.final_ground_speed`: the airspeeds in still air).
     """
     sep = scenario.separation_nm
