@@ -20,19 +20,11 @@ import numpy as np
 from rosbags.interfaces import Nodetype
 
 from ._interfaces import interface_dir
+from ._names import WIRE_HEADER, dds_type_name
 from ._store import service_names, type_description, type_hash, typestore
 
 if TYPE_CHECKING:
     from cyclonedds.idl import IdlStruct
-
-#: Leading request-header fields of rmw_cyclonedds service samples ({uint64 guid; int64 seq;}).
-WIRE_HEADER = ("rmw_guid", "rmw_seq")
-
-
-def dds_type_name(ros_name: str) -> str:
-    """``pkg/msg/Name`` -> ``pkg::msg::dds_::Name_`` (the DDS type name rmw_cyclonedds_cpp uses)."""
-    pkg, kind, name = ros_name.split("/")
-    return f"{pkg}::{kind}::dds_::{name}_"
 
 
 def get_class(ros_name: str) -> type[IdlStruct]:
@@ -47,6 +39,7 @@ def get_wire_class(ros_part: str) -> type[IdlStruct]:
     from ._idl import get_wire_class as _get_wire_class
 
     return _get_wire_class(ros_part)
+
 
 __all__ = [
     "ServiceType",

@@ -11,7 +11,7 @@ from cyclonedds.idl import IdlMeta, IdlStruct
 from cyclonedds.idl import types as t
 from rosbags.interfaces import Nodetype
 
-from . import WIRE_HEADER, dds_type_name
+from ._names import WIRE_HEADER, dds_type_name
 from ._store import type_hash, typestore
 
 _BASE: dict[str, Any] = {

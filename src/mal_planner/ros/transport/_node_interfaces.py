@@ -10,7 +10,7 @@
 
 from __future__ import annotations
 
-from typing import TYPE_CHECKING, Any
+from typing import Any
 
 import mal_msgs_py
 
@@ -28,9 +28,7 @@ from ._common import (
     value_from_msg,
     value_to_msg,
 )
-
-if TYPE_CHECKING:
-    from .cyclone import CycloneNode
+from ._node_api import InterfaceHost
 
 SEPARATOR = "."
 DEPTH_RECURSIVE = 0
@@ -60,7 +58,7 @@ def list_parameters(names: list[str], prefixes: list[str], depth: int) -> tuple[
 class NodeInterfaces:
     """Creates and serves a built-in node's standard services and topics."""
 
-    def __init__(self, node: CycloneNode, store: ParameterStore) -> None:
+    def __init__(self, node: InterfaceHost, store: ParameterStore) -> None:
         self._node = node
         self._store = store
         self._fqn = node_fqn(node.get_name(), node.get_namespace())
