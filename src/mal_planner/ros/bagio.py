@@ -7,85 +7,39 @@ Bags are real rosbag2 bags: a directory with ``metadata.yaml`` (what ``ros2 bag 
 
 from __future__ import annotations
 
-import fnmatch
-import os
 import shutil
 import signal
 import sys
 import tempfile
 import threading
-import time
 from collections.abc import Iterable
 from pathlib import Path
 from typing import Any
 
-import yaml
-from rosbags.interfaces import Qos, QosDurability, QosHistory, QosLiveliness, QosReliability, QosTime
-from rosbags.rosbag2 import StoragePlugin, Writer
+from rosbags.rosbag2 import Writer
 
 import mal_msgs_py
-from mal_planner.ros.transport import QOS_DEFAULT, QOS_LATCHED, QoSProfile
-
-STATE_TYPE = "mal_msgs/msg/AircraftState"
-
-#: Topic name patterns (relative, fnmatch) -> message type; first match wins.
-TOPIC_TYPES: tuple[tuple[str, str], ...] = (
-    ("aircraft/*/state", STATE_TYPE),
-    ("aircraft/*/path", "nav_msgs/msg/Path"),
-    ("radar/tracks", STATE_TYPE),
-    ("landing_plan", "mal_msgs/msg/LandingPlan"),
-    ("planner/markers", "visualization_msgs/msg/MarkerArray"),
-    ("diagnostics", "diagnostic_msgs/msg/DiagnosticArray"),
-    ("airspace/no_fly_zones", "mal_msgs/msg/NoFlyZone"),
+from mal_planner.ros.bag_common import (
+    LATCHED_TYPES,
+    STATE_TYPE,
+    STORAGES,
+    SUFFIX,
+    TOPIC_TYPES,
+    BagError,
+    MsgTypes,
+    add_topic,
+    bag_qos,
+    qos_for_type,
+    topic_type,
 )
-#: Types published latched (TRANSIENT_LOCAL) by our nodes; subscribe to them with QOS_LATCHED.
-LATCHED_TYPES = frozenset({"nav_msgs/msg/Path", "mal_msgs/msg/LandingPlan", "visualization_msgs/msg/MarkerArray"})
-STORAGES = {"mcap": StoragePlugin.MCAP, "sqlite3": StoragePlugin.SQLITE3}
-_SUFFIX = {"mcap": ".mcap", "sqlite3": ".db3"}
+from mal_planner.ros.bag_recording import RecordingBagWriter
+from mal_planner.ros.bag_recovery import recover_bag
 
-
-class MsgTypes:
-    """``node.types`` stand-in without a node: the ``mal_msgs_py`` classes (for writing bags directly)."""
-
-    @staticmethod
-    def msg(name: str) -> type:
-        return mal_msgs_py.get_type(name)
-
-
-class BagError(Exception):
-    """A bag that cannot be written or read (the message names the file)."""
-
-
-def topic_type(topic: str) -> str | None:
-    """Message type of one of our topics (absolute or relative name, any namespace), or None."""
-    name = topic.strip("/")
-    for pattern, msgtype in TOPIC_TYPES:
-        if fnmatch.fnmatchcase(name, pattern) or fnmatch.fnmatchcase(name, "*/" + pattern):
-            return msgtype
-    return None
-
-
-def qos_for_type(msgtype: str) -> QoSProfile:
-    """QoS our nodes use for a topic of this type (latched for plans, paths and markers)."""
-    return QOS_LATCHED if msgtype in LATCHED_TYPES else QOS_DEFAULT
-
-
-def bag_qos(profile: QoSProfile) -> list[Qos]:
-    """rosbags ``offered_qos_profiles`` entry for one of our QoS profiles."""
-    zero = QosTime(0, 0)
-    return [
-        Qos(
-            QosHistory.KEEP_ALL if profile.keep_all else QosHistory.KEEP_LAST,
-            profile.depth,
-            QosReliability.RELIABLE if profile.reliable else QosReliability.BEST_EFFORT,
-            QosDurability.TRANSIENT_LOCAL if profile.transient_local else QosDurability.VOLATILE,
-            zero,
-            zero,
-            QosLiveliness.AUTOMATIC,
-            zero,
-            False,
-        )
-    ]
+__all__ = [
+    "LATCHED_TYPES", "STATE_TYPE", "STORAGES", "TOPIC_TYPES", "BagError", "MsgTypes", "RecordingBagWriter",
+    "add_topic", "bag_qos", "open_reader", "open_writer", "qos_for_type", "recover_bag", "serialize",
+    "stop_event", "to_backend", "topic_type", "write_bag",
+]
 
 
 def open_writer(path: str | Path, storage: str = "mcap") -> Writer:
@@ -103,137 +57,6 @@ def open_writer(path: str | Path, storage: str = "mcap") -> Writer:
     return writer
 
 
-def add_topic(writer: Writer, topic: str, msgtype: str, qos: QoSProfile | None = None) -> Any:
-    """Add a connection with the type's definition from our typestore; returns the rosbags Connection."""
-    return writer.add_connection(
-        topic, msgtype, typestore=mal_msgs_py.typestore(), offered_qos_profiles=bag_qos(qos or qos_for_type(msgtype))
-    )
-
-
-class SplitBagWriter:
-    """A rosbag2 bag written as a sequence of closed storage files, like ``ros2 bag record --max-bag-duration``.
-
-    Each file is closed (indexed, footer written) after ``split_s`` seconds with messages, moved into the bag
-    directory and ``metadata.yaml`` is rewritten (atomically) to list it: a SIGKILL loses at most the messages of
-    the open file, the bag left behind is readable by rosbags and ``ros2 bag info``. The open file is written in
-    the hidden ``.open`` folder of the bag (an unfinished MCAP there is what a kill leaves).
-    """
-
-    def __init__(self, path: str | Path, storage: str = "mcap", split_s: float = 1.0) -> None:
-        self.path = Path(path)
-        if storage not in STORAGES:
-            raise BagError(f"unknown storage {storage!r} (expected mcap or sqlite3)")
-        if not split_s > 0:
-            raise BagError(f"split interval must be > 0 s, got {split_s!r}")
-        if self.path.exists():
-            raise BagError(f"{self.path} exists already, not overwriting")
-        try:
-            self.path.mkdir(parents=True)
-        except OSError as exc:
-            raise BagError(f"cannot create bag {self.path}: {exc.strerror}") from None
-        self.storage, self.split_s = storage, split_s
-        self._staging = self.path / ".open"
-        self._topics: list[tuple[str, str, QoSProfile | None]] = []
-        self._conns: list[Any] = []
-        self._files: list[dict[str, Any]] = []  # metadata of the closed files, in order
-        self._lock = threading.Lock()
-        self._writer: Writer | None = None
-        self._open_file()
-
-    def _open_file(self) -> None:
-        name = f"{self.path.name}_{len(self._files)}"
-        shutil.rmtree(self._staging, ignore_errors=True)
-        self._staging.mkdir()
-        try:
-            self._writer = Writer(self._staging / name, version=Writer.VERSION_LATEST,
-                                  storage_plugin=STORAGES[self.storage])
-            self._writer.open()
-        except Exception as exc:
-            raise BagError(f"cannot create bag {self.path}: {exc}") from None
-        self._conns = [add_topic(self._writer, *topic) for topic in self._topics]
-        self._count = 0
-        self._opened = time.monotonic()
-
-    def add_topic(self, topic: str, msgtype: str, qos: QoSProfile | None = None) -> int:
-        """Add a connection (in this and every following file); returns its key for :meth:`write`."""
-        with self._lock:
-            assert self._writer is not None
-            self._topics.append((topic, msgtype, qos))
-            self._conns.append(add_topic(self._writer, topic, msgtype, qos))
-            return len(self._topics) - 1
-
-    def write(self, key: int, timestamp_ns: int, data: bytes) -> None:
-        with self._lock:
-            assert self._writer is not None
-            self._writer.write(self._conns[key], timestamp_ns, data)
-            self._count += 1
-        self.maybe_split()
-
-    def maybe_split(self) -> None:
-        """Close the open file if it has messages and is ``split_s`` old (call it periodically)."""
-        with self._lock:
-            if self._writer is not None and self._count and time.monotonic() - self._opened >= self.split_s:
-                self._close_file()
-                self._open_file()
-
-    def _close_file(self) -> None:
-        assert self._writer is not None
-        folder = self._writer.path
-        self._writer.close()
-        self._writer = None
-        info = yaml.safe_load((folder / "metadata.yaml").read_text(encoding="utf-8"))["rosbag2_bagfile_information"]
-        for rel in info["relative_file_paths"]:
-            os.replace(folder / rel, self.path / rel)
-        self._files.append(info)
-        self._write_metadata()
-        shutil.rmtree(self._staging, ignore_errors=True)
-
-    def _write_metadata(self) -> None:
-        """``metadata.yaml`` of all closed files (counts and times summed over them)."""
-        files = self._files
-        merged = dict(files[0])
-        with_msgs = [f for f in files if f["message_count"]] or files[:1]
-        start = min(f["starting_time"]["nanoseconds_since_epoch"] for f in with_msgs)
-        end = max(f["starting_time"]["nanoseconds_since_epoch"] + f["duration"]["nanoseconds"] for f in with_msgs)
-        counts: dict[str, int] = {}
-        for f in files:
-            for t in f["topics_with_message_count"]:
-                name = t["topic_metadata"]["name"]
-                counts[name] = counts.get(name, 0) + int(t["message_count"])
-        merged |= {
-            "relative_file_paths": [p for f in files for p in f["relative_file_paths"]],
-            "files": [e for f in files for e in f["files"]],
-            "message_count": sum(int(f["message_count"]) for f in files),
-            "starting_time": {"nanoseconds_since_epoch": start},
-            "duration": {"nanoseconds": end - start},
-            "topics_with_message_count": [dict(t, message_count=counts[t["topic_metadata"]["name"]])
-                                          for t in files[0]["topics_with_message_count"]],
-        }
-        tmp = self.path / "metadata.yaml.tmp"
-        with tmp.open("w", encoding="utf-8") as fh:
-            yaml.safe_dump({"rosbag2_bagfile_information": merged}, fh, default_flow_style=False, sort_keys=False)
-            fh.flush()
-            os.fsync(fh.fileno())
-        os.replace(tmp, self.path / "metadata.yaml")
-
-    def close(self) -> None:
-        """Close the open file (an empty one only when it is the bag's first) and remove ``.open``."""
-        with self._lock:
-            if self._writer is None:
-                return
-            if self._count or not self._files:
-                self._close_file()
-            else:
-                self._writer.close()
-                self._writer = None
-            shutil.rmtree(self._staging, ignore_errors=True)
-
-    @property
-    def files(self) -> int:
-        """Closed storage files so far."""
-        return len(self._files)
-
-
 def write_bag(
     path: str | Path,
     topics: Iterable[tuple[str, str]],
@@ -247,7 +70,7 @@ def write_bag(
     """
     path = Path(path)
     single = path.suffix in (".mcap", ".db3")
-    if single and path.suffix != _SUFFIX.get(storage):
+    if single and path.suffix != SUFFIX.get(storage):
         raise BagError(f"{path}: suffix does not match storage {storage!r}")
     if single and path.exists():
         raise BagError(f"{path} exists already, not overwriting")
@@ -261,7 +84,7 @@ def write_bag(
         finally:
             writer.close()
         if single:
-            shutil.move(str(bagdir / (bagdir.name + _SUFFIX[storage])), str(path))
+            shutil.move(str(bagdir / (bagdir.name + SUFFIX[storage])), str(path))
     return path
 
 
@@ -288,12 +111,16 @@ def to_backend(raw: bytes, msgtype: str, reader: Any, node: Any) -> Any:
 
 
 def open_reader(path: str | Path) -> Any:
-    """An opened rosbags ``AnyReader`` for a rosbag2 directory or ``.mcap``/``.db3`` file; BagError otherwise."""
+    """An opened rosbags ``AnyReader`` for a rosbag2 directory or ``.mcap``/``.db3`` file; BagError otherwise.
+
+    A bag whose recorder was killed is recovered first (:func:`recover_bag`)."""
     from rosbags.highlevel import AnyReader
 
     path = Path(path)
     if not path.exists():
         raise BagError(f"cannot read bag {path}: no such file or directory")
+    if path.is_dir():
+        recover_bag(path)
     try:
         reader = AnyReader([path], default_typestore=mal_msgs_py.typestore())
         reader.open()

@@ -5,8 +5,10 @@ or the defaults (``radar/tracks``, ``landing_plan``, ``diagnostics``, plus ``air
 ``aircraft/<cs>/path`` for the callsigns of ``--callsigns`` or of a ``--scenario``). Types come from the
 topic names (:data:`mal_planner.ros.bagio.TOPIC_TYPES`) or ``topic:pkg/msg/Type``. Latched types (paths,
 landing plan, markers) are subscribed TRANSIENT_LOCAL. Bag timestamps are receive times. SIGINT/SIGTERM
-closes the bag (metadata.yaml written) and exits 0. The bag is split into storage files closed every
-``--split-s`` seconds (metadata.yaml rewritten each time), so a SIGKILL loses at most that much.
+closes the bag (metadata.yaml written) and exits 0. Like ``ros2 bag record``, the bag is one storage file, or a
+new one after ``--max-bag-size`` bytes or ``--max-bag-duration`` seconds. What is recorded reaches the disk (and
+metadata.yaml) every ``--flush-s`` seconds, so a SIGKILL loses at most that much: reading the bag afterwards
+recovers it (:func:`mal_planner.ros.bagio.recover_bag`).
 
     python -m mal_planner.ros.record out_bag --scenario scenarios/thesis.yaml
 """
@@ -20,7 +22,8 @@ import time
 from typing import Any
 
 import mal_msgs_py
-from mal_planner.ros.bagio import BagError, SplitBagWriter, qos_for_type, serialize, stop_event, topic_type
+from mal_planner.ros.bag_recording import FLUSH_S, MAX_BAG_BYTES, MAX_BAG_DURATION_S
+from mal_planner.ros.bagio import BagError, RecordingBagWriter, qos_for_type, serialize, stop_event, topic_type
 from mal_planner.ros.transport import QoSProfile, resolve_name
 
 DEFAULT_TOPICS = ("radar/tracks", "landing_plan", "diagnostics")
@@ -35,8 +38,13 @@ def parse_args(argv: list[str] | None = None) -> argparse.Namespace:
     p.add_argument("--scenario", default=None, help="take the callsigns from this scenario file")
     p.add_argument("--storage", choices=("mcap", "sqlite3"), default="mcap")
     p.add_argument("--duration", type=float, default=0.0, help="stop after this many seconds (0 = until signal)")
-    p.add_argument("--split-s", type=float, default=1.0,
-                   help="close a storage file every this many seconds: at most this much is lost on a crash")
+    p.add_argument("--flush-s", type=float, default=FLUSH_S,
+                   help="write what was recorded to disk every this many seconds: at most this much is lost on a crash")
+    p.add_argument("--split-s", dest="flush_s", type=float, default=FLUSH_S, help=argparse.SUPPRESS)  # its old name
+    p.add_argument("--max-bag-size", type=int, default=MAX_BAG_BYTES, metavar="BYTES",
+                   help="start a new storage file after this many bytes (default 1 GiB)")
+    p.add_argument("--max-bag-duration", type=float, default=MAX_BAG_DURATION_S, metavar="S",
+                   help="start a new storage file after this many seconds (default 600)")
     p.add_argument("--namespace", default="", help="namespace for relative topic names")
     return p.parse_args(argv)
 
@@ -73,7 +81,8 @@ def main(argv: list[str] | None = None) -> int:
     logging.basicConfig(level=logging.INFO, format="[%(levelname)s] [%(name)s]: %(message)s")
     try:
         topics = plan_topics(args)
-        writer = SplitBagWriter(args.out, args.storage, args.split_s)
+        writer = RecordingBagWriter(args.out, args.storage, flush_s=args.flush_s, max_bytes=args.max_bag_size,
+                                    max_duration_s=args.max_bag_duration)
     except (BagError, ValueError) as exc:
         print(f"record: {exc}", file=sys.stderr)
         return 2
@@ -93,7 +102,7 @@ def main(argv: list[str] | None = None) -> int:
         try:
             while not stop.is_set() and time.monotonic() < end:
                 node.spin_once(0.1)
-                writer.maybe_split()
+                writer.tick()
         except KeyboardInterrupt:
             pass
         node.shutdown()
@@ -103,7 +112,7 @@ def main(argv: list[str] | None = None) -> int:
     return 0
 
 
-def _writer_callback(writer: SplitBagWriter, conn: int, msgtype: str, counts: dict[int, int]) -> Any:
+def _writer_callback(writer: RecordingBagWriter, conn: int, msgtype: str, counts: dict[int, int]) -> Any:
     def callback(msg: Any) -> None:
         writer.write(conn, time.time_ns(), serialize(msg, msgtype))
         counts[conn] = counts.get(conn, 0) + 1
