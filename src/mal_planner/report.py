@@ -12,6 +12,7 @@ from pathlib import Path
 
 import numpy as np
 
+from mal_planner import jsonio
 from mal_planner.errors import outcome_code
 from mal_planner.pipeline import PlanResult
 from mal_planner.scenario import Scenario
@@ -253,7 +254,7 @@ def write_outputs(result: PlanResult, out_dir: Path, figures: str | bool = "all"
     out_dir = Path(out_dir)
     out_dir.mkdir(parents=True, exist_ok=True)
     doc = result_to_dict(result)
-    written = [_write_text(out_dir / "plan.json", json.dumps(doc, indent=1, allow_nan=False) + "\n"),
+    written = [jsonio.write(out_dir / "plan.json", doc, indent=1),
                _write_text(out_dir / "report.md", validation_report(result))]
     if result.scenario.geo_frame is not None:  # on the Earth: the plan as a BlueSky scenario too
         from mal_planner.geo.bluesky import scn_lines

@@ -21,6 +21,8 @@ import time
 from pathlib import Path
 from typing import Any
 
+from mal_planner import jsonio
+
 FAULTS_ENV = "MAL_CAMPAIGN_TEST_FAULTS"
 
 
@@ -113,9 +115,7 @@ def main(argv: list[str] | None = None) -> int:
     logging.basicConfig(level=logging.INFO, stream=sys.stderr,
                         format="%(asctime)s %(levelname).1s %(name)s: %(message)s", datefmt="%H:%M:%S")
     row = plan_row(job)
-    tmp = Path(out_path).with_suffix(".tmp")
-    tmp.write_text(json.dumps(row), encoding="utf-8")
-    tmp.replace(out_path)
+    jsonio.write(out_path, row, indent=None)  # atomically: the parent reads a whole row or none
     return 0
 
 

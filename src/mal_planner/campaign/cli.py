@@ -11,6 +11,7 @@ import time
 from pathlib import Path
 from typing import Any
 
+from mal_planner import jsonio
 from mal_planner.campaign.plan_options import DEFAULTS, add_plan_arguments, check_options, options_from_args
 from mal_planner.campaign.results import ResultsFormatError, ResultsTable, done_files, read_rows
 from mal_planner.campaign.runner import EngineSettings, ScenarioJob, default_workers, run_campaign
@@ -162,8 +163,7 @@ def main(argv: list[str] | None = None) -> int:
         return 2
     logs_dir = out / "logs"
     logs_dir.mkdir(parents=True, exist_ok=True)
-    (out / "campaign.json").write_text(json.dumps(campaign_record(options, settings, files), indent=1) + "\n",
-                                       encoding="utf-8")
+    jsonio.write(out / "campaign.json", campaign_record(options, settings, files))
     log.info("%d scenarios, %d already in %s, %d to plan", len(files), len(files) - len(todo), out / "results.csv",
              len(jobs))
     t0 = time.perf_counter()

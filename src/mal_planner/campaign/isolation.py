@@ -19,6 +19,7 @@ import time
 from pathlib import Path
 from typing import Any
 
+from mal_planner import jsonio
 from mal_planner.campaign.outcome import classify
 
 POLL_S = 0.05
@@ -51,7 +52,7 @@ def run_isolated(source: str, text: str, options: dict[str, Any], timeout_s: flo
     with tempfile.TemporaryDirectory(prefix="mal-campaign-") as tmp:
         job_path, out_path, log_path = Path(tmp, "job.json"), Path(tmp, "row.json"), Path(tmp, "log.txt")
         job = {"source": source, "text": text, "options": options, "memory_limit_bytes": memory_limit_bytes}
-        job_path.write_text(json.dumps(job), encoding="utf-8")
+        jsonio.write(job_path, job, indent=None)
         env = {**os.environ, **SINGLE_THREAD_ENV, "PYTHONUNBUFFERED": "1"}
         t0 = time.perf_counter()
         with log_path.open("wb") as log:

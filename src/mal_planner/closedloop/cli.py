@@ -8,7 +8,6 @@ Writes OUT/closed_loop.json (the metrics, every plan request and the flown track
 from __future__ import annotations
 
 import argparse
-import json
 import logging
 import math
 import sys
@@ -16,6 +15,7 @@ import time
 from dataclasses import replace
 from pathlib import Path
 
+from mal_planner import jsonio
 from mal_planner.closedloop.bluesky_sim import make_simulator
 from mal_planner.closedloop.disturbances import DEFAULT_GUST_TAU_S, WindSpec
 from mal_planner.closedloop.loop import PLAN_TIME_LIMIT_S, ClosedLoopOptions, run_closed_loop
@@ -89,6 +89,10 @@ def build_parser() -> argparse.ArgumentParser:
     return p
 
 
+def _seconds(value: float | None) -> str:
+    return "-" if value is None or not math.isfinite(value) else f"{value:.2f} s"
+
+
 def summary_lines(m: ClosedLoopMetrics, planner_side: bool = True) -> list[str]:
     lat = m.replan_latency_s
     verdict = "everyone landed, every minimum kept" if m.success else f"FAILED ({len(m.failures)} reasons)"
@@ -101,8 +105,8 @@ def summary_lines(m: ClosedLoopMetrics, planner_side: bool = True) -> list[str]:
         f"  largest deviation    {m.max_deviation_nm:.4f} nm from the plan being flown",
         f"  replans              {m.replans} ({', '.join(f'{k} {v}' for k, v in m.replan_reasons.items()) or 'none'}"
         f"{f'; {m.failed_replans} failed' if m.failed_replans else ''}), order changes {m.order_changes}",
-        f"  planning time        first {m.first_plan_s:.2f} s; replans median {lat['median']:.2f} s, p95 "
-        f"{lat['p95']:.2f} s, max {lat['max']:.2f} s",
+        f"  planning time        first {_seconds(m.first_plan_s)}; replans median {_seconds(lat['median'])}, p95 "
+        f"{_seconds(lat['p95'])}, max {_seconds(lat['max'])}",
         f"  whole run            {m.wall_s:.1f} s wall clock",
     ]
     if not planner_side:  # the simulator does not see the service's requests
@@ -166,7 +170,7 @@ def main(argv: list[str] | None = None) -> int:
               "flown": {ac.callsign: {"t": ac.t, "x": [s[0] for s in ac.states], "y": [s[1] for s in ac.states],
                                       "z": [s[2] for s in ac.states], "status": ac.status, "note": ac.end_note}
                         for ac in run.sim.aircraft}}
-    (out / "closed_loop.json").write_text(json.dumps(record, default=float, indent=1), encoding="utf-8")
+    jsonio.write(out / "closed_loop.json", record, default=float)
     if not args.no_figure:
         from mal_planner.closedloop.figure import figure_closed_loop
 

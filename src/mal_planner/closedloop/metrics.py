@@ -54,7 +54,9 @@ class ClosedLoopMetrics:
     failed_replans: int
     replan_latency_s: dict[str, float]
     """Planning time of the replans as charged in simulated time (CPU time by default): median, p95, max."""
-    first_plan_s: float
+    first_plan_s: float | None
+    """Planning time of the first plan (wall clock) [s]; None where the service's requests are not seen and the
+    caller did not measure it (the simulator node)."""
     order_changes: int
     """Replans whose landing order differs from the previous plan's (for the aircraft in both)."""
     wall_s: float
@@ -87,8 +89,10 @@ def measure(run: ClosedLoopRun) -> ClosedLoopMetrics:
 
 
 def measure_flight(sc: Scenario, sim: FlightSimulator, replans: list[Replan] | None = None,
-                   first: Replan | None = None, wall_s: float = math.nan) -> ClosedLoopMetrics:
-    """The metrics of a flight (the service's plan requests, when known: in the simulator node they are not)."""
+                   first: Replan | None = None, wall_s: float = math.nan,
+                   first_plan_s: float | None = None) -> ClosedLoopMetrics:
+    """The metrics of a flight (the service's plan requests, when known: in the simulator node they are not, and
+    it may give the first plan's time it measured as ``first_plan_s``)."""
     replans = replans or []
     failures: list[str] = []
     flown = {cs: (t, x) for cs, (t, x) in sim.flown().items() if len(t) > 1}
@@ -146,7 +150,7 @@ def measure_flight(sc: Scenario, sim: FlightSimulator, replans: list[Replan] | N
         replans=len(replans), replan_reasons=reasons, failed_replans=sum(not r.ok for r in replans),
         replan_latency_s={"median": percentile(latencies, 50), "p95": percentile(latencies, 95),
                           "max": max(latencies, default=math.nan)},
-        first_plan_s=first.wall_s if first else math.nan, order_changes=changes, wall_s=wall_s,
+        first_plan_s=first.wall_s if first else first_plan_s, order_changes=changes, wall_s=wall_s,
         notes=notes + ([] if first is None or first.ok else [f"first plan failed: {first.message}"]),
         external_losses_of_separation=_external_losses(sim))
 
