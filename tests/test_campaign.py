@@ -198,3 +198,52 @@ def test_plan_options_are_built_like_mal_plan() -> None:
     assert (plan.seed, plan.landing.mesh_tol, plan.landing.refine, plan.landing.fixed_landing_times,
             plan.time_limit_s) == (5, 1e-4, False, False, 30.0)
     assert "--plan-time-limit-s" in check_options({**options, "time_limit_s": -1.0})
+
+
+def _strict_json(path: Path) -> dict:
+    def refuse(token: str) -> None:
+        raise ValueError(f"{path}: {token} is not JSON")
+
+    return json.loads(path.read_text(encoding="utf-8"), parse_constant=refuse)
+
+
+def test_records_name_the_scenarios_relative_to_the_campaign_folder(campaign: dict) -> None:
+    """No path of the machine in the committed files: results.csv, campaign.json, summary.md and the logs name the
+    scenarios relative to the campaign folder; campaign.json is strict JSON."""
+    out = campaign["out"]
+    rows = read_rows(out / "results.csv")
+    assert sorted(r["file"] for r in rows if "hangs" not in r["file"]) == sorted(
+        f"../scenarios/{name}" for name in [*REAL, *FAULTS, "corrupt.yaml"])
+    record = _strict_json(out / "campaign.json")
+    assert all(s.startswith("../scenarios/") for s in record["scenarios"])
+    machine = str(out.parent.resolve())
+    for path in [out / "results.csv", out / "campaign.json", out / "summary.md", *(out / "logs").iterdir()]:
+        assert machine not in path.read_text(encoding="utf-8"), path
+
+
+def test_an_older_table_with_absolute_paths_resumes_and_summarizes(campaign: dict,
+                                                                   monkeypatch: pytest.MonkeyPatch) -> None:
+    """A campaign folder written before (absolute paths): --resume plans nothing again, --summary-only reads it."""
+    import shutil
+
+    out = campaign["out"]
+    old = out.parent / "old_out"
+    shutil.copytree(out, old)
+    with (old / "results.csv").open(encoding="utf-8", newline="") as fh:
+        rows = list(csv.DictReader(fh))
+    for row in rows:  # the key only: reasons name the files as they were given
+        row["file"] = str((old / row["file"]).resolve())
+    with (old / "results.csv").open("w", encoding="utf-8", newline="") as fh:
+        writer = csv.DictWriter(fh, fieldnames=COLUMNS)
+        writer.writeheader()
+        writer.writerows(rows)
+    absolute = (old / "results.csv").read_text(encoding="utf-8")
+    assert str(out.parent.resolve()) in absolute
+    monkeypatch.setenv(FAULTS_ENV, ",".join(f"{name}=exit" for name in [*REAL, "hangs.yaml"]))
+    args = [*campaign["args"], "--resume"]
+    args[args.index("--out") + 1] = str(old)
+    assert main(args) == 0
+    assert (old / "results.csv").read_text(encoding="utf-8").startswith(absolute)
+    (old / "summary.md").unlink()
+    assert main(["--out", str(old), "--summary-only"]) == 0
+    assert (old / "summary.md").read_text(encoding="utf-8") == (out / "summary.md").read_text(encoding="utf-8")

@@ -12,6 +12,7 @@ from pathlib import Path
 from typing import Any
 
 from mal_planner import jsonio
+from mal_planner.campaign.paths import campaign_key, scenario_path
 from mal_planner.campaign.plan_options import DEFAULTS, add_plan_arguments, check_options, options_from_args
 from mal_planner.campaign.results import ResultsFormatError, ResultsTable, done_files, read_rows
 from mal_planner.campaign.runner import EngineSettings, ScenarioJob, default_workers, run_campaign
@@ -66,8 +67,9 @@ def scenario_files(paths: list[Path]) -> list[Path]:
     return list(unique)
 
 
-def make_job(path: Path) -> ScenarioJob:
-    """The job of one file: its text, and the columns a cheap validation gives (none if it does not validate)."""
+def make_job(path: Path, out: Path) -> ScenarioJob:
+    """The job of one file (keyed by its path relative to the campaign folder ``out``): its text, and the columns
+    a cheap validation gives (none if it does not validate)."""
     from mal_planner.campaign.metrics import scenario_columns
     from mal_planner.scenario import ScenarioError, load_scenario
 
@@ -79,7 +81,7 @@ def make_job(path: Path) -> ScenarioJob:
         known = scenario_columns(load_scenario(path))
     except ScenarioError:
         known = {}  # planned anyway: the worker records it as invalid_input
-    return ScenarioJob(str(path), text, known)
+    return ScenarioJob(campaign_key(path, out), text, known)
 
 
 def check_settings(args: argparse.Namespace) -> EngineSettings:
@@ -96,20 +98,21 @@ def check_settings(args: argparse.Namespace) -> EngineSettings:
                           memory_limit_bytes=memory)
 
 
-def campaign_record(options: dict[str, Any], settings: EngineSettings, files: list[Path]) -> dict[str, Any]:
+def campaign_record(options: dict[str, Any], settings: EngineSettings, files: list[Path], out: Path) -> dict[str, Any]:
     from importlib.metadata import version
 
     return {"schema": "mal-planner/campaign", "version": 1, "plan_options": options,
             "engine": {"kind": "dask", "address": settings.address, "workers": settings.workers,
                        "timeout_s": settings.timeout_s, "memory_limit_bytes": settings.memory_limit_bytes},
-            "scenarios": [str(f) for f in files],
+            "scenarios": [campaign_key(f, out) for f in files],
             "software": {"mal-planner": version("mal-planner"), "distributed": version("distributed"),
                          "python": platform.python_version()},
             "started": time.strftime("%Y-%m-%dT%H:%M:%SZ", time.gmtime())}
 
 
-def check_resume(out: Path, resume: bool, options: dict[str, Any]) -> set[str]:
-    """Files already done (with --resume); UsageError when the folder holds another campaign."""
+def check_resume(out: Path, resume: bool, options: dict[str, Any]) -> set[Path]:
+    """Files already done (with --resume; their keys relative or, in older tables, absolute); UsageError when the
+    folder holds another campaign."""
     table, record = out / "results.csv", out / "campaign.json"
     if not table.exists():
         return set()
@@ -121,15 +124,17 @@ def check_resume(out: Path, resume: bool, options: dict[str, Any]) -> set[str]:
             raise UsageError(f"{record}: plan options {previous} differ from this run's {options}; "
                              "resume with the same options")
     try:
-        return done_files(read_rows(table))
+        return {scenario_path(key, out) for key in done_files(read_rows(table))}
     except ResultsFormatError as exc:
         raise UsageError(str(exc)) from None
 
 
 def write_summary(out: Path) -> Path:
+    """summary.md and the figures from results.csv (the rows' files as paths on this machine, either form)."""
     from mal_planner.campaign.summary import write_summary as write
 
-    return write(read_rows(out / "results.csv"), out)
+    rows = [{**row, "file": str(scenario_path(row["file"], out))} for row in read_rows(out / "results.csv")]
+    return write(rows, out)
 
 
 def main(argv: list[str] | None = None) -> int:
@@ -156,14 +161,14 @@ def main(argv: list[str] | None = None) -> int:
         if out.exists() and not out.is_dir():
             raise UsageError(f"--out: {out} is not a folder")
         done = check_resume(out, args.resume, options)
-        todo = [f for f in files if str(f) not in done]
-        jobs = [make_job(f) for f in todo]
+        todo = [f for f in files if f not in done]
+        jobs = [make_job(f, out) for f in todo]
     except (UsageError, ResultsFormatError) as exc:
         print(f"{PROG}: error: {exc}", file=sys.stderr)
         return 2
     logs_dir = out / "logs"
     logs_dir.mkdir(parents=True, exist_ok=True)
-    jsonio.write(out / "campaign.json", campaign_record(options, settings, files))
+    jsonio.write(out / "campaign.json", campaign_record(options, settings, files, out))
     log.info("%d scenarios, %d already in %s, %d to plan", len(files), len(files) - len(todo), out / "results.csv",
              len(jobs))
     t0 = time.perf_counter()

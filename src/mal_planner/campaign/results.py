@@ -8,7 +8,8 @@ from collections.abc import Iterable
 from pathlib import Path
 
 COLUMNS: tuple[str, ...] = (
-    "file",                        # absolute path of the scenario file (the key --resume uses)
+    "file",                        # the scenario file, relative to the campaign folder (absolute in tables
+                                   # written before); the key --resume uses
     "name",                        # the scenario's name
     "n_aircraft",
     "layout",                      # wall | no-fly-zones | open (from the obstacles and gates of the file)

@@ -28,7 +28,7 @@ log = logging.getLogger("mal_planner.campaign")
 @dataclass(frozen=True)
 class ScenarioJob:
     source: str
-    """Absolute path of the scenario file (the row's key)."""
+    """The scenario file's path relative to the campaign folder (the row's key; it names the file in messages)."""
     text: str
     """The file's YAML text (sent to the worker)."""
     known: dict[str, Any]
