@@ -70,7 +70,7 @@ def test_invalid_scenario_field(tmp_path: Path) -> None:
     proc = subprocess.run([sys.executable, "-m", "mal_planner.cli", str(bad)], capture_output=True, text=True,
                           timeout=120)
     assert proc.returncode == 2
-    assert proc.stderr.strip() == f"mal-plan: error: {bad}: aircraft[1].speed: Input should be greater than 0"
+    assert proc.stderr.strip() == f"mal-plan: error: {bad}: aircraft[1].speed: must be > 0 nm/s, got -1"
 
 
 def test_unverified_plan_exits_3(tmp_path: Path, capsys) -> None:

@@ -95,11 +95,13 @@ def _local(edit) -> dict:
 
 
 CASES = [
-    ("lat-range", lambda: _geo(lambda d: d["aircraft"][0].update(lat=91.0)), "aircraft[0].lat", "less than or equal"),
+    ("lat-range", lambda: _geo(lambda d: d["aircraft"][0].update(lat=91.0)), "aircraft[0].lat",
+     "must be <= 90 deg, got 91"),
     ("no-speed", lambda: _geo(lambda d: d["aircraft"][1].pop("speed_kt")), "aircraft[1].speed_kt", "Field required"),
     ("mixed", lambda: _geo(lambda d: d["aircraft"][1].update(position=[0, 5, 0.2])), "aircraft[1].position",
      "Extra inputs"),
-    ("course", lambda: _geo(lambda d: d["runway"].update(course_deg=360.0)), "runway.course_deg", "less than 360"),
+    ("course", lambda: _geo(lambda d: d["runway"].update(course_deg=360.0)), "runway.course_deg",
+     "must be < 360 deg, got 360"),
     ("threshold", lambda: _geo(lambda d: d["runway"]["threshold"].pop("lon")), "runway.threshold.lon",
      "Field required"),
     ("outside", lambda: _geo(lambda d: d["aircraft"][2].update(lat=48.9)), "aircraft[2].lat/lon/alt_ft",

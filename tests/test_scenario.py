@@ -39,7 +39,8 @@ def _mutate(edit) -> dict:
 
 CASES = [
     ("missing-airspace", lambda d: d.pop("airspace"), "airspace", "Field required"),
-    ("negative-speed", lambda d: d["aircraft"][1].update(speed=-0.04), "aircraft[1].speed", "greater than 0"),
+    ("negative-speed", lambda d: d["aircraft"][1].update(speed=-0.04), "aircraft[1].speed",
+     "must be > 0 nm/s, got -0.04"),
     ("odd-p", lambda d: d["obstacles"][0].update(p=7), "obstacles[0].p", "even integer"),
     ("zero-semi-axis", lambda d: d["obstacles"][2].update(semi_axes=[1, 0, 1]), "obstacles[2].semi_axes", "> 0"),
     ("bad-interval", lambda d: d["airspace"].update(x=[3, -3]), "airspace.x", "below upper bound"),
@@ -49,12 +50,14 @@ CASES = [
     ("outside-airspace", lambda d: d["aircraft"][0].update(position=[9, 5, 0.2]), "aircraft[0].position", "outside"),
     ("inside-obstacle", lambda d: d["aircraft"][0].update(position=[-2, 3.0005, 0.15]), "aircraft[0].position",
      "inside obstacle"),
-    ("bank-limit", lambda d: d["limits"].update(bank_angle_deg=95), "limits.bank_angle_deg", "less than 90"),
+    ("bank-limit", lambda d: d["limits"].update(bank_angle_deg=95), "limits.bank_angle_deg",
+     "must be < 90 deg, got 95"),
     ("negative-nv", lambda d: d["limits"].update(n_v=[-1, 2]), "limits.n_v", ">= 0"),
     ("gate-axes", lambda d: d["gates"][0].update(bounds={"x": [-1, 1]}), "gates[0]", "exactly the axes"),
     ("no-aircraft", lambda d: d.update(aircraft=[]), "aircraft", "at least 1"),
     ("spacing-order", lambda d: d["separation"].update(max_landing_spacing_s=5), "separation", "must exceed"),
-    ("wrong-type", lambda d: d["aircraft"][0].update(position="north"), "aircraft[0].position", "valid tuple"),
+    ("wrong-type", lambda d: d["aircraft"][0].update(position="north"), "aircraft[0].position",
+     "valid tuple (nm), got 'north'"),
     ("wall-hole", lambda d: d["obstacles"].append({"type": "wall_with_hole", "position": 2.0, "thickness": 0.01,
                                                    "span": {"x": [-3, 3], "z": [0, 0.3]},
                                                    "hole": {"x": [-1, 1], "z": [0.1, 0.5]}}),
@@ -83,3 +86,40 @@ def test_file_level_errors(tmp_path: Path) -> None:
     scalar.write_text("42\n")
     with pytest.raises(ScenarioError, match="top level must be a mapping"):
         load_scenario(scalar)
+
+
+GEODETIC = Path("scenarios/thesis_geodetic.yaml")
+UNIT_CASES = [
+    ("speed", _base, lambda d: d["aircraft"][0].update(speed=-0.1), "aircraft[0].speed: must be > 0 nm/s, got -0.1"),
+    ("speed-too-fast", _base, lambda d: d["aircraft"][2].update(speed=1.5),
+     "aircraft[2].speed: must be <= 1 nm/s, got 1.5"),
+    ("alt-ft", lambda: yaml.safe_load(GEODETIC.read_text()), lambda d: d["aircraft"][1].update(alt_ft=70000),
+     "aircraft[1].alt_ft: must be <= 60000 ft, got 70000"),
+    ("heading", _base, lambda d: d["aircraft"][0].update(heading_deg=-400.5),
+     "aircraft[0].heading_deg: must be >= -360 deg, got -400.5"),
+    ("not-a-number", _base, lambda d: d["aircraft"][0].update(speed="fast"),
+     "aircraft[0].speed: Input should be a valid number, unable to parse string as a number (nm/s), got 'fast'"),
+    ("separation-ft", _base, lambda d: d["separation"].update(vertical_ft=0), "separation.vertical_ft: must be > 0 ft, "
+                                                                              "got 0"),
+    ("no-unit", _base, lambda d: d.update(sequencing={"max_shift": -2}), "sequencing.max_shift: must be >= 0, got -2"),
+]
+
+
+@pytest.mark.parametrize(("name", "load", "edit", "message"), UNIT_CASES, ids=[c[0] for c in UNIT_CASES])
+def test_errors_name_the_fields_unit_and_the_value_given(name, load, edit, message) -> None:
+    """The unit is declared once per field (schema.quantity); the loader's one formatter writes it into the line."""
+    data = load()
+    edit(data)
+    with pytest.raises(ScenarioError) as info:
+        parse_scenario(data, source=f"{name}.yaml")
+    assert str(info.value) == f"{name}.yaml: {message}"
+
+
+def test_units_are_declared_on_the_fields() -> None:
+    from mal_planner.scenario.schema import field_unit
+
+    assert field_unit(("aircraft", 0, "local", "speed")) == "nm/s"
+    assert field_unit(("aircraft", 3, "geodetic", "speed_kt")) == "kt"
+    assert field_unit(("runway", "geodetic", "threshold", "elevation_ft")) == "ft"
+    assert field_unit(("obstacles", 1, "wall_with_hole", "hole", "x", 0)) == "nm"
+    assert field_unit(("aircraft", 0, "local", "callsign")) is None

@@ -32,6 +32,7 @@ from mal_planner.scenario.schema import (
     RunwayConfig,
     ScenarioConfig,
     WallConfig,
+    field_unit,
 )
 from mal_planner.units import ft_to_nm
 
@@ -46,6 +47,32 @@ def _format_location(loc: tuple[Any, ...]) -> str:
         else:
             out += f".{part}" if out else str(part)
     return out
+
+
+_BOUNDS = {"greater_than": ("gt", ">"), "greater_than_equal": ("ge", ">="), "less_than": ("lt", "<"),
+           "less_than_equal": ("le", "<=")}
+"""pydantic's error types of a number outside its range: the constraint's key and its sign."""
+
+
+def _number(value: Any) -> str:
+    return f"{value:g}" if isinstance(value, float) else str(value)
+
+
+def _error_message(err: Any) -> str:
+    """One validation error as one line: a number out of range as ``must be > 0 nm/s, got -0.1``; any other
+    error on a field with a unit names the unit and the value given, e.g. ``Input should be a valid number
+    (nm/s), got 'fast'``."""
+    unit = field_unit(tuple(err["loc"]))
+    with_unit = f" {unit}" if unit else ""
+    if err["type"] in _BOUNDS and "input" in err:
+        key, sign = _BOUNDS[err["type"]]
+        return f"must be {sign} {_number(err['ctx'][key])}{with_unit}, got {_number(err['input'])}"
+    msg = err["msg"].removeprefix("Value error, ")
+    if unit and err["type"] == "value_error":  # our own checks name the values already
+        msg += f" ({unit})"
+    elif unit and err["type"] != "missing":
+        msg += f" ({unit}), got {err['input']!r}"
+    return msg
 
 
 def localize(config: ScenarioConfig) -> tuple[ScenarioConfig, GeoFrame | None]:
@@ -145,8 +172,7 @@ def parse_scenario(data: Any, source: str = "<scenario>") -> Scenario:
         config = ScenarioConfig.model_validate(data)
     except ValidationError as exc:
         err = exc.errors()[0]
-        msg = err["msg"].removeprefix("Value error, ")
-        raise ScenarioError(source, _format_location(err["loc"]), msg) from None
+        raise ScenarioError(source, _format_location(err["loc"]), _error_message(err)) from None
     return build_scenario(config, source)
 
 

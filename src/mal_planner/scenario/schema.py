@@ -7,10 +7,12 @@ Angles are in degrees, lengths in nm, speeds in nm/s (or kt and ft in a geodetic
 from __future__ import annotations
 
 import math
-from typing import Annotated, Any, Literal
+from typing import Annotated, Any, Literal, get_args
 
 import numpy as np
 from pydantic import BaseModel, ConfigDict, Discriminator, Field, Tag, field_validator, model_validator
+from pydantic.fields import FieldInfo
+from pydantic_core import PydanticUndefined
 
 from mal_planner.dynamics import DYNAMICS_MODELS, ControlLimits
 from mal_planner.geodesy import GeoFrame
@@ -35,6 +37,32 @@ class _Strict(BaseModel):
     model_config = ConfigDict(extra="forbid", frozen=True)
 
 
+def quantity(unit: str, default: Any = PydanticUndefined, **constraints: Any) -> Any:
+    """A field measured in ``unit`` (declared once: validation errors name it, see :func:`field_unit`)."""
+    return Field(default, json_schema_extra={"unit": unit}, **constraints)
+
+
+def _models_in(annotation: Any) -> list[type[BaseModel]]:
+    """The pydantic models an annotation holds (through unions, lists, dicts and ``Annotated``)."""
+    if isinstance(annotation, type) and issubclass(annotation, BaseModel):
+        return [annotation]
+    return [m for arg in get_args(annotation) for m in _models_in(arg)]
+
+
+def field_unit(loc: tuple[int | str, ...], root: type[BaseModel] | None = None) -> str | None:
+    """The unit declared (with :func:`quantity`) for the field at a validation error's location, if any."""
+    models: list[type[BaseModel]] = [root or ScenarioConfig]
+    info: FieldInfo | None = None
+    for part in loc:
+        found = next((m.model_fields[part] for m in models if isinstance(part, str) and part in m.model_fields),
+                     None)
+        if found is not None:
+            info = found
+            models = _models_in(found.annotation)
+    extra = info.json_schema_extra if info is not None else None
+    return extra.get("unit") if isinstance(extra, dict) else None  # type: ignore[return-value]
+
+
 def _check_interval(value: Interval) -> Interval:
     if not value[0] < value[1]:
         raise ValueError(f"lower bound {value[0]} must be below upper bound {value[1]}")
@@ -42,7 +70,7 @@ def _check_interval(value: Interval) -> Interval:
 
 
 class LimitsConfig(_Strict):
-    bank_angle_deg: float = Field(45.0, gt=0.0, lt=90.0)
+    bank_angle_deg: float = quantity("deg", 45.0, gt=0.0, lt=90.0)
     n_h: Interval = (-2.0, 2.0)
     n_v: Interval = (0.0, 2.0)
 
@@ -61,15 +89,15 @@ class LimitsConfig(_Strict):
 
 class _AircraftCommon(_Strict):
     callsign: str = Field(min_length=1, max_length=16, pattern=r"^[A-Za-z0-9_]+$")
-    flight_path_angle_deg: float = Field(ge=-30.0, le=30.0)
+    flight_path_angle_deg: float = quantity("deg", ge=-30.0, le=30.0)
     model: str = "point_mass"
     wake_category: Literal["L", "M", "H", "J", "A", "B", "C", "D", "E", "F"] | None = None
     """ICAO (J, H, M, L) or RECAT-EU (A-F) wake-turbulence category; required by ``separation.wake``."""
-    landing_time: float | None = Field(None, gt=0.0)
+    landing_time: float | None = quantity("s", None, gt=0.0)
     """Fixed landing time in s (as in the thesis); omitted: taken from the sequencer."""
-    target_time: float | None = Field(None, gt=0.0)
+    target_time: float | None = quantity("s", None, gt=0.0)
     """Target landing time in s for the sequencer; omitted: the earliest it can land (a free aircraft)."""
-    latest_time: float | None = Field(None, gt=0.0)
+    latest_time: float | None = quantity("s", None, gt=0.0)
     """Latest landing time in s (e.g. its fuel); omitted: none."""
     cost_early: float = Field(0.0, ge=0.0)
     """Cost per second of landing before the target (Beasley's g); 0: early is free."""
@@ -89,10 +117,10 @@ class _AircraftCommon(_Strict):
 class AircraftConfig(_AircraftCommon):
     """An aircraft in the local frame."""
 
-    position: Vec3
+    position: Vec3 = quantity("nm")
     """Initial x, y, z in nm."""
-    heading_deg: float = Field(ge=-360.0, le=360.0)
-    speed: float = Field(gt=0.0, le=1.0)
+    heading_deg: float = quantity("deg", ge=-360.0, le=360.0)
+    speed: float = quantity("nm/s", gt=0.0, le=1.0)
     """Constant airspeed in nm/s."""
 
 
@@ -100,13 +128,13 @@ class GeoAircraftConfig(_AircraftCommon):
     """An aircraft on the Earth (needs a geodetic runway); the flight-path angle is the velocity's, as in the local
     format."""
 
-    lat: float = Field(ge=-90.0, le=90.0)
-    lon: float = Field(ge=-180.0, le=180.0)
-    alt_ft: float = Field(ge=-1500.0, le=60000.0)
+    lat: float = quantity("deg", ge=-90.0, le=90.0)
+    lon: float = quantity("deg", ge=-180.0, le=180.0)
+    alt_ft: float = quantity("ft", ge=-1500.0, le=60000.0)
     """Altitude in ft, in the datum of the runway's ``elevation_ft``."""
-    track_deg: float = Field(ge=-360.0, le=360.0)
+    track_deg: float = quantity("deg", ge=-360.0, le=360.0)
     """True track, clockwise from true north at the aircraft."""
-    speed_kt: float = Field(gt=0.0, le=3600.0)
+    speed_kt: float = quantity("kt", gt=0.0, le=3600.0)
     """Constant true airspeed in knots (no wind: also the ground speed)."""
 
     def to_local(self, frame: GeoFrame) -> AircraftConfig:
@@ -129,15 +157,15 @@ AnyAircraftConfig = Annotated[Annotated[AircraftConfig, Tag("local")] | Annotate
 class RunwayConfig(_Strict):
     """The runway in the local frame."""
 
-    position: Vec3 = (0.0, 0.0, 0.0)
-    flight_path_angle_deg: float = Field(0.0, ge=-10.0, le=10.0)
-    heading_deg: float = -90.0
+    position: Vec3 = quantity("nm", (0.0, 0.0, 0.0))
+    flight_path_angle_deg: float = quantity("deg", 0.0, ge=-10.0, le=10.0)
+    heading_deg: float = quantity("deg", -90.0)
 
 
 class ThresholdConfig(_Strict):
-    lat: float = Field(ge=-90.0, le=90.0)
-    lon: float = Field(ge=-180.0, le=180.0)
-    elevation_ft: float = Field(0.0, ge=-1500.0, le=20000.0)
+    lat: float = quantity("deg", ge=-90.0, le=90.0)
+    lon: float = quantity("deg", ge=-180.0, le=180.0)
+    elevation_ft: float = quantity("ft", 0.0, ge=-1500.0, le=20000.0)
     """Height of the threshold in ft (the datum of the aircraft's ``alt_ft``)."""
 
 
@@ -145,9 +173,9 @@ class GeoRunwayConfig(_Strict):
     """The runway on the Earth: the origin of the local frame, which turns the landing direction to -y."""
 
     threshold: ThresholdConfig
-    course_deg: float = Field(ge=0.0, lt=360.0)
+    course_deg: float = quantity("deg", ge=0.0, lt=360.0)
     """True course of the landing direction, clockwise from true north."""
-    flight_path_angle_deg: float = Field(0.0, ge=-10.0, le=10.0)
+    flight_path_angle_deg: float = quantity("deg", 0.0, ge=-10.0, le=10.0)
 
     def frame(self) -> GeoFrame:
         t = self.threshold
@@ -164,9 +192,9 @@ AnyRunwayConfig = Annotated[Annotated[RunwayConfig, Tag("local")] | Annotated[Ge
 
 
 class AirspaceConfig(_Strict):
-    x: Interval
-    y: Interval
-    z: Interval
+    x: Interval = quantity("nm")
+    y: Interval = quantity("nm")
+    z: Interval = quantity("nm")
 
     _intervals = field_validator("x", "y", "z")(_check_interval)
 
@@ -180,8 +208,8 @@ def _is_even(value: int) -> int:
 class SuperquadricConfig(_Strict):
     type: Literal["superquadric"] = "superquadric"
     name: str
-    center: Vec3
-    semi_axes: Vec3
+    center: Vec3 = quantity("nm")
+    semi_axes: Vec3 = quantity("nm")
     p: int = 2
 
     _even = field_validator("p")(_is_even)
@@ -197,13 +225,13 @@ class SuperquadricConfig(_Strict):
 class GateConfig(_Strict):
     name: str = "gate"
     axis: Literal["x", "y", "z"] = "y"
-    position: float
+    position: float = quantity("nm")
     direction: Literal[-1, 1] = -1
     """Sign of the travel along ``axis`` when passing the gate."""
-    bounds: dict[Literal["x", "y", "z"], Interval]
+    bounds: dict[Literal["x", "y", "z"], Interval] = quantity("nm")
     """The hole's bounds along the two other axes."""
-    flight_path_angle_deg: float = 0.0
-    heading_deg: float = -90.0
+    flight_path_angle_deg: float = quantity("deg", 0.0)
+    heading_deg: float = quantity("deg", -90.0)
 
     @model_validator(mode="after")
     def _two_other_axes(self) -> GateConfig:
@@ -235,15 +263,15 @@ class WallConfig(_Strict):
     type: Literal["wall_with_hole"]
     name: str = "wall"
     axis: Literal["x", "y", "z"] = "y"
-    position: float
+    position: float = quantity("nm")
     """Coordinate of the wall's gate face (the thesis: y = 3, the wall spans [3, 3.001])."""
-    thickness: float = Field(gt=0.0)
-    span: dict[Literal["x", "y", "z"], Interval]
-    hole: dict[Literal["x", "y", "z"], Interval]
+    thickness: float = quantity("nm", gt=0.0)
+    span: dict[Literal["x", "y", "z"], Interval] = quantity("nm")
+    hole: dict[Literal["x", "y", "z"], Interval] = quantity("nm")
     p: int = 50
     direction: Literal[-1, 1] = -1
-    flight_path_angle_deg: float = 0.0
-    heading_deg: float = -90.0
+    flight_path_angle_deg: float = quantity("deg", 0.0)
+    heading_deg: float = quantity("deg", -90.0)
 
     _even = field_validator("p")(_is_even)
 
@@ -286,17 +314,17 @@ ObstacleConfig = Annotated[SuperquadricConfig | WallConfig, Field(discriminator=
 
 
 class SeparationConfig(_Strict):
-    distance_nm: float = Field(0.25, gt=0.0)
+    distance_nm: float = quantity("nm", 0.25, gt=0.0)
     """Minimum distance between any two airborne aircraft (a sphere, as in the thesis); with ``vertical_ft``, the
     horizontal minimum."""
-    horizontal_nm: float | None = Field(None, gt=0.0)
+    horizontal_nm: float | None = quantity("nm", None, gt=0.0)
     """The horizontal minimum of an ATC protected zone (another name for ``distance_nm``; give one of them)."""
-    vertical_ft: float | None = Field(None, gt=0.0)
+    vertical_ft: float | None = quantity("ft", None, gt=0.0)
     """The vertical minimum (ICAO: 1000 ft): two aircraft are separated when they are ``distance_nm`` apart
     horizontally OR this far apart vertically (a cylinder, as ATC and BlueSky count it). None: the sphere."""
-    landing_spacing_s: float = Field(15.0, gt=0.0)
+    landing_spacing_s: float = quantity("s", 15.0, gt=0.0)
     """Minimum time between successive landings."""
-    max_landing_spacing_s: float = Field(30.0, gt=0.0)
+    max_landing_spacing_s: float = quantity("s", 30.0, gt=0.0)
     """Largest time between successive landings the sequencer aims for."""
     wake: WakeTableName = "none"
     """Wake-turbulence distance minima between successive landings (:mod:`mal_planner.wake`):
@@ -327,9 +355,9 @@ class WindConfig(_Strict):
     their ground speed is airspeed + wind, and gates and the runway are passed on their ground track, crabbed.
     """
 
-    speed_kt: float = Field(ge=0.0, le=200.0)
-    from_deg: float | None = Field(None, ge=0.0, le=360.0)
-    from_heading_deg: float | None = Field(None, ge=-360.0, le=360.0)
+    speed_kt: float = quantity("kt", ge=0.0, le=200.0)
+    from_deg: float | None = quantity("deg", None, ge=0.0, le=360.0)
+    from_heading_deg: float | None = quantity("deg", None, ge=-360.0, le=360.0)
 
     @model_validator(mode="after")
     def _one_direction(self) -> WindConfig:
@@ -358,7 +386,7 @@ class SequencingConfig(_Strict):
     delay against the earliest landing times."""
     max_shift: int | None = Field(None, ge=0)
     """optimal: no aircraft more than this many places from its first-come position (None: any order)."""
-    time_limit_s: float = Field(10.0, gt=0.0)
+    time_limit_s: float = quantity("s", 10.0, gt=0.0)
     """optimal: the MILP returns the best order found when this runs out."""
 
     def options(self) -> SequencingOptions:
@@ -370,7 +398,7 @@ class ScenarioConfig(_Strict):
 
     name: str
     description: str = ""
-    gravity: float = Field(0.0052952, gt=0.0)
+    gravity: float = quantity("nm/s^2", 0.0052952, gt=0.0)
     """g in nm/s^2."""
     runway: AnyRunwayConfig = RunwayConfig()
     airspace: AirspaceConfig
