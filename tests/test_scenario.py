@@ -107,7 +107,8 @@ UNIT_CASES = [
 
 @pytest.mark.parametrize(("name", "load", "edit", "message"), UNIT_CASES, ids=[c[0] for c in UNIT_CASES])
 def test_errors_name_the_fields_unit_and_the_value_given(name, load, edit, message) -> None:
-    """The unit is declared once per field (schema.quantity); the loader's one formatter writes it into the line."""
+    """The unit is declared once per field (quantities.quantity); the loader's one formatter writes it into the
+    line."""
     data = load()
     edit(data)
     with pytest.raises(ScenarioError) as info:
@@ -116,10 +117,11 @@ def test_errors_name_the_fields_unit_and_the_value_given(name, load, edit, messa
 
 
 def test_units_are_declared_on_the_fields() -> None:
-    from mal_planner.scenario.schema import field_unit
+    from mal_planner.scenario.quantities import field_unit
+    from mal_planner.scenario.schema import ScenarioConfig
 
-    assert field_unit(("aircraft", 0, "local", "speed")) == "nm/s"
-    assert field_unit(("aircraft", 3, "geodetic", "speed_kt")) == "kt"
-    assert field_unit(("runway", "geodetic", "threshold", "elevation_ft")) == "ft"
-    assert field_unit(("obstacles", 1, "wall_with_hole", "hole", "x", 0)) == "nm"
-    assert field_unit(("aircraft", 0, "local", "callsign")) is None
+    assert field_unit(("aircraft", 0, "local", "speed"), ScenarioConfig) == "nm/s"
+    assert field_unit(("aircraft", 3, "geodetic", "speed_kt"), ScenarioConfig) == "kt"
+    assert field_unit(("runway", "geodetic", "threshold", "elevation_ft"), ScenarioConfig) == "ft"
+    assert field_unit(("obstacles", 1, "wall_with_hole", "hole", "x", 0), ScenarioConfig) == "nm"
+    assert field_unit(("aircraft", 0, "local", "callsign"), ScenarioConfig) is None

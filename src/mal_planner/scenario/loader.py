@@ -25,6 +25,7 @@ from mal_planner.dynamics import make_dynamics
 from mal_planner.geodesy import GeoFrame
 from mal_planner.obstacles import Superquadric
 from mal_planner.scenario.model import Aircraft, Scenario, ScenarioError
+from mal_planner.scenario.quantities import field_unit
 from mal_planner.scenario.schema import (
     GEODETIC_ROUND_OFF,
     GeoAircraftConfig,
@@ -32,7 +33,6 @@ from mal_planner.scenario.schema import (
     RunwayConfig,
     ScenarioConfig,
     WallConfig,
-    field_unit,
 )
 from mal_planner.units import ft_to_nm
 
@@ -62,7 +62,7 @@ def _error_message(err: Any) -> str:
     """One validation error as one line: a number out of range as ``must be > 0 nm/s, got -0.1``; any other
     error on a field with a unit names the unit and the value given, e.g. ``Input should be a valid number
     (nm/s), got 'fast'``."""
-    unit = field_unit(tuple(err["loc"]))
+    unit = field_unit(tuple(err["loc"]), ScenarioConfig)
     with_unit = f" {unit}" if unit else ""
     if err["type"] in _BOUNDS and "input" in err:
         key, sign = _BOUNDS[err["type"]]

@@ -7,16 +7,15 @@ Angles are in degrees, lengths in nm, speeds in nm/s (or kt and ft in a geodetic
 from __future__ import annotations
 
 import math
-from typing import Annotated, Any, Literal, get_args
+from typing import Annotated, Any, Literal
 
 import numpy as np
 from pydantic import BaseModel, ConfigDict, Discriminator, Field, Tag, field_validator, model_validator
-from pydantic.fields import FieldInfo
-from pydantic_core import PydanticUndefined
 
 from mal_planner.dynamics import DYNAMICS_MODELS, ControlLimits
 from mal_planner.geodesy import GeoFrame
 from mal_planner.obstacles import Gate, Superquadric, wall_with_hole
+from mal_planner.scenario.quantities import quantity
 from mal_planner.scenario.sequencing import SequencingOptions, Strategy
 from mal_planner.units import kt_to_nm_per_s
 from mal_planner.wake import WakeTableName
@@ -35,32 +34,6 @@ Interval = tuple[float, float]
 
 class _Strict(BaseModel):
     model_config = ConfigDict(extra="forbid", frozen=True)
-
-
-def quantity(unit: str, default: Any = PydanticUndefined, **constraints: Any) -> Any:
-    """A field measured in ``unit`` (declared once: validation errors name it, see :func:`field_unit`)."""
-    return Field(default, json_schema_extra={"unit": unit}, **constraints)
-
-
-def _models_in(annotation: Any) -> list[type[BaseModel]]:
-    """The pydantic models an annotation holds (through unions, lists, dicts and ``Annotated``)."""
-    if isinstance(annotation, type) and issubclass(annotation, BaseModel):
-        return [annotation]
-    return [m for arg in get_args(annotation) for m in _models_in(arg)]
-
-
-def field_unit(loc: tuple[int | str, ...], root: type[BaseModel] | None = None) -> str | None:
-    """The unit declared (with :func:`quantity`) for the field at a validation error's location, if any."""
-    models: list[type[BaseModel]] = [root or ScenarioConfig]
-    info: FieldInfo | None = None
-    for part in loc:
-        found = next((m.model_fields[part] for m in models if isinstance(part, str) and part in m.model_fields),
-                     None)
-        if found is not None:
-            info = found
-            models = _models_in(found.annotation)
-    extra = info.json_schema_extra if info is not None else None
-    return extra.get("unit") if isinstance(extra, dict) else None  # type: ignore[return-value]
 
 
 def _check_interval(value: Interval) -> Interval:
