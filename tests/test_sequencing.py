@@ -72,7 +72,7 @@ def test_optimal_matches_enumeration_of_every_order() -> None:
 def test_narrowing_and_cuts_keep_the_optimum_of_the_plain_milp() -> None:
     """Reduced-cost narrowing, segment cuts and blocks against Beasley's MILP without them (HiGHS, no time
     limit reached): the same least cost on random problems too large to enumerate."""
-    from mal_planner.sequencing.milp import build_model, pair_relations, run_milp
+    from mal_planner.sequencing.formulation import build_model, pair_relations, run_milp
 
     rng = np.random.default_rng(11)
     checked = 0

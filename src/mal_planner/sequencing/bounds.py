@@ -21,7 +21,7 @@ import numpy as np
 from scipy.optimize import linprog
 from scipy.sparse import vstack
 
-from mal_planner.sequencing.milp import CostCut, Model, Pair, build_model, pair_relations, run_milp
+from mal_planner.sequencing.formulation import CostCut, Model, Pair, build_model, pair_relations, run_milp
 from mal_planner.sequencing.problem import SequencingInfeasible, SequencingOptions, SequencingProblem
 
 HEURISTIC_SHARE = 0.25
