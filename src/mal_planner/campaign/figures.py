@@ -7,8 +7,8 @@ from pathlib import Path
 
 import numpy as np
 
+from mal_planner.campaign.aggregates import STAGES, failure_counts, fit_growth, stage_medians, success_by_n
 from mal_planner.campaign.results import as_float
-from mal_planner.campaign.summary import STAGES, failure_counts, fit_growth, stage_medians, success_by_n
 
 
 def _pyplot():

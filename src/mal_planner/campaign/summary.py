@@ -1,69 +1,19 @@
 """``summary.md`` of a campaign: success per N, time per stage against N with growth exponents, solve-time
-distribution, failure classes. Computed from the rows of results.csv only."""
+distribution, failure classes. Computed from the rows of results.csv only (:mod:`.aggregates`); the figures are
+:mod:`.figures`."""
 
 from __future__ import annotations
 
-import math
 import re
 from collections import Counter
 from collections.abc import Sequence
-from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
 
+from mal_planner.campaign.aggregates import STAGES, failure_counts, fit_growth, n_of, stage_medians, success_by_n
+from mal_planner.campaign.figures import write_figures
 from mal_planner.campaign.results import as_float
-from mal_planner.errors import FAILURE_CLASSES
-
-STAGES = ("initializer_s", "optimizer_s", "verification_s", "total_s")
-
-
-@dataclass(frozen=True)
-class Growth:
-    """median time ~ c N^exponent, least squares on log median against log N."""
-
-    exponent: float
-    coefficient: float
-
-
-def fit_growth(ns: Sequence[int], medians: Sequence[float]) -> Growth | None:
-    pairs = [(n, m) for n, m in zip(ns, medians, strict=True) if n > 0 and m is not None and m > 0]
-    if len({n for n, _ in pairs}) < 2:
-        return None
-    slope, intercept = np.polyfit(np.log([n for n, _ in pairs]), np.log([m for _, m in pairs]), 1)
-    return Growth(float(slope), float(math.exp(intercept)))
-
-
-def n_of(row: dict[str, str]) -> int | None:
-    value = as_float(row.get("n_aircraft", ""))
-    return int(value) if value is not None else None
-
-
-def success_by_n(rows: Sequence[dict[str, str]]) -> dict[int, tuple[int, int]]:
-    """N -> (verified, scenarios); rows whose N is unknown (unreadable files) are left out."""
-    out: dict[int, list[int]] = {}
-    for row in rows:
-        n = n_of(row)
-        if n is not None:
-            counts = out.setdefault(n, [0, 0])
-            counts[0] += row["status"] == "ok"
-            counts[1] += 1
-    return {n: (ok, total) for n, (ok, total) in sorted(out.items())}
-
-
-def stage_medians(rows: Sequence[dict[str, str]], stage: str) -> dict[int, float]:
-    """N -> median seconds of ``stage`` over the rows where it ran."""
-    values: dict[int, list[float]] = {}
-    for row in rows:
-        n, t = n_of(row), as_float(row.get(stage, ""))
-        if n is not None and t is not None:
-            values.setdefault(n, []).append(t)
-    return {n: float(np.median(v)) for n, v in sorted(values.items())}
-
-
-def failure_counts(rows: Sequence[dict[str, str]]) -> dict[str, int]:
-    counts = Counter(row["failure_class"] for row in rows if row["failure_class"])
-    return {cls: counts.get(cls, 0) for cls in FAILURE_CLASSES}
 
 
 def typical_reasons(rows: Sequence[dict[str, str]], failure_class: str, k: int = 2) -> list[tuple[str, int]]:
@@ -282,8 +232,6 @@ def _median(values: Sequence[float]) -> float | None:
 
 def write_summary(rows: Sequence[dict[str, str]], out_dir: Path) -> Path:
     """Write the figures and ``summary.md`` into ``out_dir``; return the summary's path."""
-    from mal_planner.campaign.figures import write_figures
-
     figures = write_figures(rows, out_dir) if rows else []
     path = Path(out_dir) / "summary.md"
     path.write_text(summary_markdown(rows, figures), encoding="utf-8")
