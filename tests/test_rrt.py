@@ -7,8 +7,9 @@ from pathlib import Path
 import numpy as np
 import pytest
 
+from mal_planner.initializer.base import PathPlanner, PlanningFailed, path_length
 from mal_planner.initializer.collision import CollisionChecker
-from mal_planner.initializer.planners import PathPlanner, PlanningFailed, make_planner, path_length
+from mal_planner.initializer.planners import make_planner
 from mal_planner.obstacles import Superquadric
 from mal_planner.scenario import load_scenario
 

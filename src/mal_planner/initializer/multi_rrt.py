@@ -16,8 +16,8 @@ import numpy as np
 from scipy.spatial import cKDTree
 
 from mal_planner.deadline import NO_DEADLINE, Deadline
+from mal_planner.initializer.base import PlanningFailed, default_step, require_free_endpoints
 from mal_planner.initializer.collision import CollisionChecker
-from mal_planner.initializer.planners import PlanningFailed, default_step, require_free_endpoints
 from mal_planner.initializer.smoothing import SmoothedSearch
 
 

@@ -17,9 +17,12 @@ from functools import cache
 import numpy as np
 
 from mal_planner.deadline import NO_DEADLINE, Deadline
+from mal_planner.initializer.base import PlanningFailed, default_step, require_free_endpoints
 from mal_planner.initializer.collision import CollisionChecker
-from mal_planner.initializer.planners import OMPL_PREFIX, PlanningFailed, default_step, require_free_endpoints
 from mal_planner.initializer.smoothing import SmoothedSearch
+
+OMPL_PREFIX = "ompl:"
+"""Specs of OMPL's planners: this prefix and the planner's name in ``ompl.geometric``."""
 
 _GEOMETRIC_PLANNERS = (
     "RRT", "RRTConnect", "RRTstar", "InformedRRTstar", "SORRTstar", "AORRTC", "BITstar", "BFMT", "FMT",
@@ -84,12 +87,7 @@ class OmplPlanner(SmoothedSearch):
         ou.setLogLevel(ou.LOG_NONE)  # setSeed reports an error once sampling has started; it still reseeds
         ou.RNG.setSeed(int(rng.integers(1, 2**31 - 1)))
 
-        space = ob.RealVectorStateSpace(3)
-        bounds = ob.RealVectorBounds(3)
-        for i, (lo, hi) in enumerate(checker.airspace):
-            bounds.setLow(i, float(lo))
-            bounds.setHigh(i, float(hi))
-        space.setBounds(bounds)
+        space = _airspace_space(checker)
         ss = og.SimpleSetup(space)
         si = ss.getSpaceInformation()
 
@@ -115,8 +113,25 @@ class OmplPlanner(SmoothedSearch):
         ss.setPlanner(planner)
         ss.setOptimizationObjective(ob.PathLengthOptimizationObjective(si))
 
+        status, polls = self._solve(ss, min(self.time_limit, deadline.remaining()))
+        self.last_iterations = polls
+        if not ss.haveExactSolutionPath():
+            deadline.check()  # the plan's time limit, not the planner, ended the query
+            raise PlanningFailed(
+                f"{self.spec}: no path from {np.round(start, 3).tolist()} to {np.round(goal, 3).tolist()} "
+                f"({status}, {polls} iterations)"
+            )
+        path = ss.getSolutionPath()
+        out = np.array([[path.getState(i)[j] for j in range(3)] for i in range(path.getStateCount())])
+        out[0], out[-1] = start, goal
+        return out
+
+    def _solve(self, ss, budget_s: float) -> tuple[object, int]:
+        """Run the set-up query until it has an exact solution, for at most ``budget_s`` seconds and
+        :attr:`iteration_cap` termination-condition polls: (the last solve status, the polls)."""
+        import ompl.base as ob
+
         polls = [0]
-        budget_s = min(self.time_limit, deadline.remaining())
         ends = time.perf_counter() + budget_s
         # Anytime planners report their solution only when solve() returns: run them in rounds of
         # max_iterations polls (each solve() continues the same tree) until one has an exact solution.
@@ -138,14 +153,17 @@ class OmplPlanner(SmoothedSearch):
             status = ss.solve(ob.PlannerTerminationCondition(stop))
             if ss.haveExactSolutionPath():
                 break
-        self.last_iterations = polls[0]
-        if not ss.haveExactSolutionPath():
-            deadline.check()  # the plan's time limit, not the planner, ended the query
-            raise PlanningFailed(
-                f"{self.spec}: no path from {np.round(start, 3).tolist()} to {np.round(goal, 3).tolist()} "
-                f"({status}, {polls[0]} iterations)"
-            )
-        path = ss.getSolutionPath()
-        out = np.array([[path.getState(i)[j] for j in range(3)] for i in range(path.getStateCount())])
-        out[0], out[-1] = start, goal
-        return out
+        return status, polls[0]
+
+
+def _airspace_space(checker: CollisionChecker):
+    """OMPL's ``RealVectorStateSpace(3)`` bounded by the checker's airspace."""
+    import ompl.base as ob
+
+    space = ob.RealVectorStateSpace(3)
+    bounds = ob.RealVectorBounds(3)
+    for i, (lo, hi) in enumerate(checker.airspace):
+        bounds.setLow(i, float(lo))
+        bounds.setHigh(i, float(hi))
+    space.setBounds(bounds)
+    return space
