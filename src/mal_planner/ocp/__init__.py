@@ -30,9 +30,10 @@ Example (two phases, parameter = initial state, linkage, event)::
 """
 
 from .lgr import diff_matrix, integration_matrix, lagrange_matrix, lgr_nodes, lgr_weights
+from .options import OCPOptions
 from .problem import Endpoint, Endpoints, Linkage, Phase, PhaseGuess, PhaseMesh, Problem
 from .solution import MeshIteration, OCPSolution, PhaseSolution
-from .solver import OCPOptions, OCPSolver
+from .solver import OCPSolver
 from .transcription import Transcription
 
 __all__ = [

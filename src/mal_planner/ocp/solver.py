@@ -11,11 +11,14 @@ from typing import Any
 import casadi as ca
 import numpy as np
 
+from .functions import bound_vector, column, phase_function
 from .mesh import control_overshoot, estimate_errors, path_overshoot, refine, segment_errors, state_overshoot
 from .nodes import midpoint_functions, node_functions
+from .options import OCPOptions
 from .problem import PhaseGuess, PhaseMesh, Problem
 from .solution import MeshIteration, OCPSolution, PhaseSolution
-from .transcription import IterationWatch, Transcription, _bounds, _col, phase_function
+from .transcription import NLPResult, Transcription
+from .watch import IterationWatch
 
 log = logging.getLogger("mal_planner.ocp")
 
@@ -25,61 +28,24 @@ INFEASIBLE = "Infeasible_Problem_Detected"
 MeshKey = tuple
 
 
-@dataclass
-class OCPOptions:
-    """Solver and mesh-refinement settings.
-
-    ``ipopt`` entries override the defaults below (keys without the ``ipopt.`` prefix).
-    The monotone barrier strategy is the default because the adaptive one was measured
-    ~30x slower on the landing problem.  Solves started from a previous solution (mesh
-    iterations >= 1, or ``guess=<OCPSolution>``) use NLPs built with ``warm_ipopt`` added,
-    which start IPOPT near the barrier's end (about 2x fewer iterations); if such a warm
-    solve fails, the cold NLP is tried from the same guess.  ``warm_ipopt={}`` disables it.
-    """
-
-    tol: float = 1e-8
-    max_iter: int = 3000
-    ipopt: dict[str, Any] = field(default_factory=dict)
-    refine: bool = True
-    mesh_tol: float = 1e-6
-    n_min: int = 3
-    n_max: int = 10
-    max_mesh_iterations: int = 10
-    max_segments: int = 64
-    warm_ipopt: dict[str, Any] = field(
-        default_factory=lambda: {"mu_init": 1e-5, "bound_push": 1e-6, "bound_frac": 1e-6}
-    )
-    callback: Callable[[MeshIteration], None] | None = None
-    structured_derivatives: bool = True
-    """Give IPOPT the constraint Jacobian and the Lagrangian's Hessian assembled from each node's own derivatives
-    (:mod:`mal_planner.ocp.nodes`); False: CasADi differentiates the whole NLP (the same numbers, slower)."""
-    control_overshoot_tol: float | None = None
-    """Split the segments whose control interpolant passes the control bounds (or ``control_path``'s) by more
-    than this anywhere between the points where the NLP holds them (controls' units; None: no check). A caller
-    whose bounds are a margin inside hard limits sets the margin: the interpolant then never passes the limits."""
-    cached_nlps: int = 3
-    """NLPs kept for re-solves (least recently used dropped): a replan reuses the final mesh's; the
-    intermediate meshes of a refinement would otherwise hold memory (20 aircraft: ~300 MB each)."""
-
-    def nlpsol_options(self, warm: bool = False) -> dict[str, Any]:
-        """CasADi ``nlpsol`` options; ``warm`` adds ``warm_ipopt`` (small initial barrier)."""
-        ip = {
-            "mu_strategy": "monotone",
-            "linear_solver": "mumps",
-            "print_level": 0,
-            "tol": self.tol,
-            "max_iter": self.max_iter,
-            "sb": "yes",
-        }
-        ip.update(self.ipopt)
-        if warm:
-            ip.update(self.warm_ipopt)
-        opts: dict[str, Any] = {f"ipopt.{k}": v for k, v in ip.items()}
-        opts["print_time"] = False
-        return opts
-
-
 GuessArg = Sequence[PhaseGuess | None] | OCPSolution | None
+
+
+@dataclass
+class _Refinement:
+    """What the mesh-refinement loop carries from one mesh iteration to the next."""
+
+    visited: set[MeshKey] = field(default_factory=set)
+    history: list[MeshIteration] = field(default_factory=list)
+    total_time: float = 0.0
+    total_iter: int = 0
+    sol: OCPSolution | None = None
+    """The last mesh iteration's solution."""
+    best: OCPSolution | None = None
+    """The successful iteration with the smallest mesh error."""
+    best_iteration: int = -1
+    best_bulging: int = 0
+    converged: bool = False
 
 
 def _first_output(f: ca.Function) -> ca.Function:
@@ -168,118 +134,148 @@ class OCPSolver:
         """
         opt = self.options
         do_refine = opt.refine if refine_mesh is None else refine_mesh
-        p = np.zeros(self.problem.n_params) if params is None else np.asarray(params, dtype=float).reshape(-1)
-        if p.size != self.problem.n_params:
-            raise ValueError(f"expected {self.problem.n_params} parameters, got {p.size}")
+        p = self._parameters(params)
         cur = tuple(meshes) if meshes is not None else tuple(ph.mesh for ph in self.problem.phases)
-        visited: set[MeshKey] = set()
-        history: list[MeshIteration] = []
-        total_time = 0.0
-        total_iter = 0
-        sol: OCPSolution | None = None
-        best: OCPSolution | None = None  # the successful iteration with the smallest mesh error
-        best_iteration = -1
-        best_bulging = 0
+        run = _Refinement()
         src: GuessArg = guess
-        converged = False
         previous: list = [None] * len(cur)  # per phase, the segment errors of the last iteration
         self.watch.start(deadline)
         for it in range(opt.max_mesh_iterations + 1):
             if it > 0 and deadline is not None and deadline.expired():
                 log.warning("time limit reached after %d mesh iterations", it)
                 break
-            visited.add(tuple(m.key() for m in cur))
+            run.visited.add(tuple(m.key() for m in cur))
             warm_now = isinstance(src, OCPSolution) if warm is None or it > 0 else warm
-            tr, built = self.transcription(cur, warm_now)
-            build_time = tr.build_time if built else 0.0
-            w0 = tr.initial_guess(src)
-            res = tr.solve(p, w0)
-            if (not res.success and warm_now and self.options.warm_ipopt and not self.watch.stopped
-                    and (retry_infeasible or res.status != INFEASIBLE)):
-                log.info("warm-started NLP failed (%s); retrying cold", res.status)
-                total_time += res.solve_time
-                total_iter += res.iterations
-                tr, built = self.transcription(cur, False)
-                build_time += tr.build_time if built else 0.0
-                res = tr.solve(p, w0)
-            total_time += res.solve_time
-            total_iter += res.iterations
-            sol = self._make_solution(tr, res, p)
-            errors = tuple(
-                estimate_errors(ps.layout, ps.t0, ps.tf, ps.x.T / self._state_scales[i][:, None], ps.u[:-1].T,
-                                self._dynamics_eval(i, p))
-                for i, ps in enumerate(sol.phases)
-            )
-            max_err = max((float(e.max()) for e in errors if e.size), default=0.0)
-            bulges = [b | cut for b, cut in zip(self._bulging_segments(sol), self._cutting_segments(sol, p),
-                                                 strict=True)]
-            rec = MeshIteration(
-                iteration=it,
-                segments=tuple(m.n_segments for m in cur),
-                degrees=tuple(m.degrees for m in cur),
-                max_error=max_err,
-                errors=errors,
-                nlp_iterations=res.iterations,
-                nlp_time=res.solve_time,
-                build_time=build_time,
-                status=res.status,
-                nlp_success=res.success,
-            )
-            history.append(rec)
-            n_bulging = sum(int(b.sum()) for b in bulges)
-            log.info(
-                "mesh iter %d: segments=%s degrees=%s max_err=%.3e%s nlp_iter=%d nlp_time=%.3fs build=%.3fs %s",
-                it,
-                rec.segments,
-                rec.degrees,
-                max_err,
-                f" segments_past_bounds={n_bulging}" if n_bulging else "",
-                res.iterations,
-                res.solve_time,
-                rec.build_time,
-                res.status,
-            )
-            if opt.callback is not None:
-                opt.callback(rec)
-            sol.max_error = max_err
-            if not res.success:
+            sol, errors, bulges = self._mesh_iteration(it, cur, src, p, warm_now, retry_infeasible, run)
+            if not sol.nlp_success:
                 break
-            if best is None or max_err <= best.max_error:
-                best, best_iteration, best_bulging = sol, it, n_bulging
-            if max_err <= opt.mesh_tol and not n_bulging:
-                converged = True
+            n_bulging = sum(int(b.sum()) for b in bulges)
+            if run.best is None or sol.max_error <= run.best.max_error:
+                run.best, run.best_iteration, run.best_bulging = sol, it, n_bulging
+            if sol.max_error <= opt.mesh_tol and not n_bulging:
+                run.converged = True
                 break
             if not do_refine:
                 break
-            if it - best_iteration >= 2:
-                log.info("mesh refinement stalled: no better error in 2 iterations; stopping")
+            step = self._refined(it, cur, errors, previous, bulges, run)
+            if step is None:
                 break
-            new = tuple(refine(m, e, opt.mesh_tol, opt.n_min, opt.n_max, before, split)
-                        for m, e, before, split in zip(cur, errors, previous, bulges, strict=True))
-            previous = [segment_errors(m, e) for m, e in zip(cur, errors, strict=True)]
-            key = tuple(m.key() for m in new)
-            if key in visited:
-                log.warning("mesh refinement revisits a solved mesh; stopping")
-                break
-            if any(m.n_segments > opt.max_segments for m in new):
-                log.warning("mesh refinement exceeds max_segments=%d; stopping", opt.max_segments)
-                break
-            cur, src = new, sol
+            cur, previous = step
+            src = sol
+        return self._outcome(run, do_refine)
+
+    def _parameters(self, params: Sequence[float] | np.ndarray | None) -> np.ndarray:
+        p = np.zeros(self.problem.n_params) if params is None else np.asarray(params, dtype=float).reshape(-1)
+        if p.size != self.problem.n_params:
+            raise ValueError(f"expected {self.problem.n_params} parameters, got {p.size}")
+        return p
+
+    def _solve_nlp(self, cur: tuple[PhaseMesh, ...], src: GuessArg, p: np.ndarray, warm_now: bool,
+                   retry_infeasible: bool, run: _Refinement) -> tuple[Transcription, NLPResult, float]:
+        """One NLP solve on the meshes ``cur`` (a failed warm solve retried cold); also the NLP build time."""
+        tr, built = self.transcription(cur, warm_now)
+        build_time = tr.build_time if built else 0.0
+        w0 = tr.initial_guess(src)
+        res = tr.solve(p, w0)
+        if (not res.success and warm_now and self.options.warm_ipopt and not self.watch.stopped
+                and (retry_infeasible or res.status != INFEASIBLE)):
+            log.info("warm-started NLP failed (%s); retrying cold", res.status)
+            run.total_time += res.solve_time
+            run.total_iter += res.iterations
+            tr, built = self.transcription(cur, False)
+            build_time += tr.build_time if built else 0.0
+            res = tr.solve(p, w0)
+        run.total_time += res.solve_time
+        run.total_iter += res.iterations
+        return tr, res, build_time
+
+    def _mesh_iteration(self, it: int, cur: tuple[PhaseMesh, ...], src: GuessArg, p: np.ndarray, warm_now: bool,
+                        retry_infeasible: bool, run: _Refinement
+                        ) -> tuple[OCPSolution, tuple[np.ndarray, ...], list[np.ndarray]]:
+        """Solve on ``cur`` and assess the solution: per phase its segment errors and the segments whose
+        interpolants pass a bound; the iteration is logged and recorded in ``run``."""
+        tr, res, build_time = self._solve_nlp(cur, src, p, warm_now, retry_infeasible, run)
+        sol = self._make_solution(tr, res, p)
+        errors = tuple(
+            estimate_errors(ps.layout, ps.t0, ps.tf, ps.x.T / self._state_scales[i][:, None], ps.u[:-1].T,
+                            self._dynamics_eval(i, p))
+            for i, ps in enumerate(sol.phases)
+        )
+        max_err = max((float(e.max()) for e in errors if e.size), default=0.0)
+        bulges = [b | cut for b, cut in zip(self._bulging_segments(sol), self._cutting_segments(sol, p),
+                                             strict=True)]
+        rec = MeshIteration(
+            iteration=it,
+            segments=tuple(m.n_segments for m in cur),
+            degrees=tuple(m.degrees for m in cur),
+            max_error=max_err,
+            errors=errors,
+            nlp_iterations=res.iterations,
+            nlp_time=res.solve_time,
+            build_time=build_time,
+            status=res.status,
+            nlp_success=res.success,
+        )
+        run.history.append(rec)
+        run.sol = sol
+        n_bulging = sum(int(b.sum()) for b in bulges)
+        log.info(
+            "mesh iter %d: segments=%s degrees=%s max_err=%.3e%s nlp_iter=%d nlp_time=%.3fs build=%.3fs %s",
+            it,
+            rec.segments,
+            rec.degrees,
+            max_err,
+            f" segments_past_bounds={n_bulging}" if n_bulging else "",
+            res.iterations,
+            res.solve_time,
+            rec.build_time,
+            res.status,
+        )
+        if self.options.callback is not None:
+            self.options.callback(rec)
+        sol.max_error = max_err
+        return sol, errors, bulges
+
+    def _refined(self, it: int, cur: tuple[PhaseMesh, ...], errors: tuple[np.ndarray, ...], previous: list,
+                 bulges: list[np.ndarray], run: _Refinement) -> tuple[tuple[PhaseMesh, ...], list] | None:
+        """The next meshes and the segment errors they were refined from, or None when the refinement stops
+        (stalled, back on a solved mesh, or too many segments)."""
+        opt = self.options
+        if it - run.best_iteration >= 2:
+            log.info("mesh refinement stalled: no better error in 2 iterations; stopping")
+            return None
+        new = tuple(refine(m, e, opt.mesh_tol, opt.n_min, opt.n_max, before, split)
+                    for m, e, before, split in zip(cur, errors, previous, bulges, strict=True))
+        previous = [segment_errors(m, e) for m, e in zip(cur, errors, strict=True)]
+        key = tuple(m.key() for m in new)
+        if key in run.visited:
+            log.warning("mesh refinement revisits a solved mesh; stopping")
+            return None
+        if any(m.n_segments > opt.max_segments for m in new):
+            log.warning("mesh refinement exceeds max_segments=%d; stopping", opt.max_segments)
+            return None
+        return new, previous
+
+    def _outcome(self, run: _Refinement, do_refine: bool) -> OCPSolution:
+        """The last mesh iteration's solution, or the best successful one when the refinement did not converge;
+        with the effort of all of them."""
+        opt = self.options
+        sol, best = run.sol, run.best
         assert sol is not None
-        if best is not None and (best is not sol or (do_refine and not converged)):
+        if best is not None and (best is not sol or (do_refine and not run.converged)):
             # A later mesh iteration failed, or the refinement stopped above the tolerance: the best
             # successful iteration is the answer; its accuracy is reported, and the caller's independent
             # checks decide whether it is good enough.
             # Not converged means the error is above the tolerance or segments still pass the bounds.
-            past = f", {best_bulging} segments past the bounds" if best_bulging else ""
+            past = f", {run.best_bulging} segments past the bounds" if run.best_bulging else ""
             log.warning("mesh refinement stopped at error %.2e (tolerance %.0e%s); keeping mesh iteration %d",
-                        best.max_error, opt.mesh_tol, past, best_iteration)
+                        best.max_error, opt.mesh_tol, past, run.best_iteration)
             sol = best
             sol.status = f"{sol.status} (mesh error {sol.max_error:.1e}, tolerance {opt.mesh_tol:.0e}{past})"
-        sol.mesh_history = history
-        sol.iterations = total_iter
-        sol.solve_time = total_time
-        sol.mesh_converged = converged
+        sol.mesh_history = run.history
+        sol.iterations = run.total_iter
+        sol.solve_time = run.total_time
+        sol.mesh_converged = run.converged
         sol.success = sol.nlp_success
         return sol
 
@@ -303,11 +299,11 @@ class OCPSolver:
         out = []
         for i, (ph, ps) in enumerate(zip(self.problem.phases, sol.phases, strict=True)):
             flags = np.zeros(ps.layout.mesh.n_segments, bool)
-            x_tol = _bounds(ph.state_overshoot_tol, ph.nx, np.inf)
+            x_tol = bound_vector(ph.state_overshoot_tol, ph.nx, np.inf)
             if np.any(np.isfinite(x_tol)):
                 b = ph.bounds()
                 flags |= np.any(state_overshoot(ps.layout, ps.x, b["x_lb"], b["x_ub"]) > x_tol, axis=1)
-            tol = _bounds(ph.path_overshoot_tol, self._funcs[i].size1_out(2), np.inf)
+            tol = bound_vector(ph.path_overshoot_tol, self._funcs[i].size1_out(2), np.inf)
             if not np.any(np.isfinite(tol)):
                 out.append(flags)
                 continue
@@ -315,8 +311,8 @@ class OCPSolver:
             def path(x: np.ndarray, u: np.ndarray, t: np.ndarray, i: int = i) -> np.ndarray:
                 return np.asarray(self._funcs[i].map(t.size)(x, u, t.reshape(1, -1), params)[2])
 
-            b_lb = _bounds(ph.path_lb, tol.size, -np.inf)
-            b_ub = _bounds(ph.path_ub, tol.size, np.inf)
+            b_lb = bound_vector(ph.path_lb, tol.size, -np.inf)
+            b_ub = bound_vector(ph.path_ub, tol.size, np.inf)
             out.append(flags | path_overshoot(ps.layout, ps.t0, ps.tf, ps.x, ps.u[:-1], path, b_lb, b_ub,
                                               np.where(np.isfinite(tol), tol, np.inf)))
         return out
@@ -349,10 +345,10 @@ def _control_path_eval(phase) -> tuple:
     if phase.control_path is None or not phase.nu:
         return (None,)
     u = ca.SX.sym("u", phase.nu)
-    fun = ca.Function(f"{phase.name}_control_path", [u], [_col(phase.control_path(u))])
+    fun = ca.Function(f"{phase.name}_control_path", [u], [column(phase.control_path(u))])
     n = fun.size1_out(0)
 
     def path(v: np.ndarray) -> np.ndarray:
         return np.asarray(fun.map(v.shape[1])(v))
 
-    return path, _bounds(phase.control_path_lb, n, -np.inf), _bounds(phase.control_path_ub, n, np.inf)
+    return path, bound_vector(phase.control_path_lb, n, -np.inf), bound_vector(phase.control_path_ub, n, np.inf)
