@@ -17,10 +17,9 @@ import pytest
 from mal_planner.campaign.child import FAULTS_ENV
 from mal_planner.campaign.cli import main
 from mal_planner.campaign.metrics import ray_clearance_nm
-from mal_planner.campaign.outcome import classify
 from mal_planner.campaign.results import COLUMNS, ResultsTable, read_rows
 from mal_planner.campaign.traffic import TrafficSpec, generate_one
-from mal_planner.errors import FAILURE_CLASSES, InfeasibleRequest, InvalidInput
+from mal_planner.errors import FAILURE_CLASSES, InfeasibleRequest, InvalidInput, classify
 from mal_planner.initializer import PlanningFailed
 from mal_planner.obstacles import Superquadric
 from mal_planner.scenario import ScenarioError

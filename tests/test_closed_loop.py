@@ -187,11 +187,11 @@ def test_reference_carries_on_along_its_final_line() -> None:
 
 
 def test_the_track_filter_smooths_radar_noise_against_the_plan_and_keeps_its_estimate_across_replans() -> None:
-    from mal_planner.service.track_filter import DeviationFilter
+    from mal_planner.service.track_filter import DeviationFilter, noise_factor
 
     plan = Reference(np.array([0.0, 100.0]), np.array([[0.0, 4.0, 0.1, 0.0, -np.pi / 2],
                                                       [0.0, 0.0, 0.1, 0.0, -np.pi / 2]]))
-    filt = DeviationFilter(time_constant_s=4.0, period_s=1.0)
+    filt = DeviationFilter(time_constant_s=4.0)
     rng = np.random.default_rng(1)
     sigma = 30.0 / 1852.0
     offset = np.array([0.02, 0.0, 0.0])  # the aircraft flies 0.02 nm east of its plan
@@ -199,10 +199,10 @@ def test_the_track_filter_smooths_radar_noise_against_the_plan_and_keeps_its_est
     for k in range(400):
         t = k * 0.25
         measured = plan.position(t) + offset + rng.normal(0.0, sigma, 3)
-        errors.append(filt.update("A", measured, plan, t) - plan.position(t) - offset)
+        errors.append(filt.update("A", measured, plan, t, 0.25) - plan.position(t) - offset)
     spread = float(np.std(np.array(errors[40:])[:, 0]))
     assert spread < 0.6 * sigma  # about sigma sqrt(a / (2 - a))
-    assert spread == pytest.approx(sigma * filt.noise_factor(), rel=0.3)
+    assert spread == pytest.approx(sigma * noise_factor(0.25, 4.0), rel=0.3)
     # a new plan: the same estimate, expressed against it
     new = Reference(np.array([50.0, 100.0]), np.array([[0.1, 2.0, 0.1, 0.0, -np.pi / 2],
                                                        [0.1, 0.0, 0.1, 0.0, -np.pi / 2]]))

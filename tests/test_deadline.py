@@ -9,9 +9,8 @@ from types import SimpleNamespace
 import numpy as np
 import pytest
 
-from mal_planner.campaign.outcome import classify
 from mal_planner.deadline import Deadline
-from mal_planner.errors import TimeLimitReached
+from mal_planner.errors import TimeLimitReached, classify
 from mal_planner.initializer import MultiRRT, PlanningFailed, Sequencer
 from mal_planner.initializer.collision import CollisionChecker
 from mal_planner.initializer.ompl_planners import available_ompl_planners
@@ -108,19 +107,24 @@ def test_fallback_initializer_out_of_time_is_a_timeout_naming_it(thesis, monkeyp
 
 
 def test_node_reports_the_initializer_timeout_as_a_failed_plan(thesis) -> None:
-    """The node's plan step (run on a stand-in for the node: no DDS) answers a failure carrying the reason."""
-    from mal_planner.ros.planner_node import PlanJob, PlannerNode
-    from mal_planner.service.inputs import PlanInputs
+    """The node's plan step (run on a stand-in for the node: no DDS, its real service core) answers a failure
+    carrying the reason."""
+    from mal_planner.ros.plan_jobs import PlanJob
+    from mal_planner.ros.planner_node import PlannerNode
+    from mal_planner.service.core import PlanningService
+    from mal_planner.service.rules import ServiceRules
+    from mal_planner.service.tracks import Track
 
-    options = PlanOptions(seed=0, time_limit_s=1e-6)
+    service = PlanningService(thesis, ServiceRules(), PlanOptions(seed=0, time_limit_s=1e-6))
+    tracks = {a.callsign: Track(a.callsign, 1.0, a.state0.copy(), a.speed) for a in thesis.aircraft}
     failed: list[tuple[str, str | None]] = []
     node = SimpleNamespace(
-        _inputs=lambda job: PlanInputs(thesis, 0.0, {}), _plan_options=lambda: options, _planning_options=None,
+        service=service, _now=lambda: 1.0, _clock=time.monotonic,
         _planning=SimpleNamespace(plan=lambda sc, opts, *, reuse, start_time, what_if: Planner(opts).plan(
             sc, reuse=reuse, start_time=start_time)),  # in this process: the PlanProcess interface
-        _current=None, _failed=lambda job, inputs, reason, result=None, failure_class=None: failed.append(
-            (reason, failure_class)) or SimpleNamespace(success=False, message=reason))
-    outcome = PlannerNode._plan(node, PlanJob(["test"]))  # type: ignore[arg-type]
+        _failed=lambda request, reason, outcome, latency_s, result=None: failed.append(
+            (reason, outcome)) or SimpleNamespace(success=False, message=reason))
+    outcome = PlannerNode._plan(node, PlanJob(["test"], explicit=tracks))  # type: ignore[arg-type]
     assert not outcome.success
     assert failed == [(outcome.message, "timeout")]  # error code 6 in the service response and diagnostics
     assert outcome.message.startswith("planning failed: time limit 1e-06 s reached in the initializer ("), failed

@@ -81,6 +81,6 @@ def test_campaign_keys_round_trip_and_the_node_offers_every_ros_option() -> None
     assert to_campaign({"fixed_landing_times": True}) == {"free_landing_times": False}
     assert set(CAMPAIGN_DEFAULTS) == {*to_campaign(values), "closed_loop"}
     assert {o.ros for o in PLAN_OPTIONS if o.ros} <= set(PARAMETERS)
-    node = NodeParams(**{k: v[0] for k, v in PARAMETERS.items()}).plan_options()
+    node = NodeParams().plan_options()
     assert node.time_limit_s == 60.0 and node.landing.output_dt == 0.25  # the node's own defaults
     assert node.landing.strategy == "auto" and node.initializer == "multi-rrt"

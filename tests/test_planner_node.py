@@ -397,11 +397,10 @@ def test_restart_in_the_middle_of_a_replay(backend_snippet, snippet, tmp_path: P
 def test_bad_input_is_logged_and_ignored(backend_snippet, snippet, tmp_path: Path) -> None:  # noqa: F811
     """NaN, wrong frame, absurd speed, implausible/stale/future/below-ground tracks, invalid no-fly zone and a
     bad parameter: one log line each, node lives."""
-    params = params_file(tmp_path, "    mesh_tol: -1.0\n    min_aircraft: 5\n    bogus: 1\n")
+    params = params_file(tmp_path, "    min_aircraft: 5\n    bogus: 1\n")
     planner = start_planner(backend_snippet, params)
     wait_for(planner, "planner ready", 30)
     text = "\n".join(planner.output)
-    assert "parameter 'mesh_tol'" in text and "using the default" in text
     assert "unknown parameter 'bogus'" in text
     snippet(BAD_INPUT % {"repeat": 3, "go": "", "nfz": True, "issue10": True}).wait_for_line("published", 30)
     wait_for(planner, "added no-fly zone 'storm'", 20)
@@ -430,19 +429,24 @@ print("TRIGGER", res.success, res.message, flush=True)
     assert planner.proc.poll() is None
 
 
-def test_params_file_errors_are_one_line(tmp_path: Path, caplog: pytest.LogCaptureFixture) -> None:
-    from mal_planner.ros.node_params import read_params_file
+def test_params_file_errors_are_one_line(tmp_path: Path) -> None:
+    """A params file that cannot be read, is not YAML or holds a bad value: one line naming it (the node then
+    exits 2 before anything starts)."""
+    from mal_planner.ros.node_params import ParamsError, read_params_file
 
     log = logging.getLogger("test")
     bad = tmp_path / "bad.yaml"
     bad.write_text("planner:\n  ros__parameters: {seed: [1,\n", encoding="utf-8")
-    with caplog.at_level(logging.ERROR):
-        assert read_params_file(bad, "planner", "", log) == {}
-        assert read_params_file(tmp_path / "missing.yaml", "planner", "", log) == {}
-    assert len(caplog.records) == 2
-    assert all("\n" not in r.getMessage() for r in caplog.records)
-    assert str(bad) in caplog.records[0].getMessage() and "invalid" in caplog.records[0].getMessage()
-    assert "cannot read" in caplog.records[1].getMessage()
+    value = tmp_path / "value.yaml"
+    value.write_text("planner:\n  ros__parameters: {mesh_tol: -1.0}\n", encoding="utf-8")
+    problems = []
+    for path in (bad, tmp_path / "missing.yaml", value):
+        with pytest.raises(ParamsError) as err:
+            read_params_file(path, "planner", "", log)
+        problems.append(str(err.value))
+    assert all("\n" not in p and p.startswith(f"params file {tmp_path}") for p in problems)
+    assert "invalid" in problems[0] and "cannot read" in problems[1]
+    assert problems[2].endswith("parameter 'mesh_tol': must be > 0, got -1.0")
 
 
 def test_plan_scenario_extrapolates_and_adds_unknown_aircraft() -> None:

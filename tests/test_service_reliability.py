@@ -248,19 +248,18 @@ def test_a_pair_too_close_at_the_start_leaves_the_others_planned(backend_snippet
             assert reason.startswith(f"lost separation with {other} at the plan start (0.1") and "0.25 nm" in reason
 
 
-def test_out_of_range_parameters_in_the_file_are_replaced_by_their_defaults(backend_snippet, tmp_path: Path  # noqa: F811
-                                                                           ) -> None:
-    """rclpy refuses to declare a value outside the descriptor's range; the node still starts on both backends,
-    each bad value reported in one line and replaced by its default."""
+def test_a_bad_parameter_in_the_file_stops_the_start_with_one_line(backend_snippet, tmp_path: Path  # noqa: F811
+                                                                   ) -> None:
+    """Issue 31: an operator who typed ``degree: 1000`` gets exit 2 and one line naming the file, the parameter, the
+    value and the range, before any plan (not the default and a log line), on both backends."""
     params = tmp_path / "planner.params.yaml"
-    params.write_text(coarse_params("    figures: false\n").replace("degree: 5", "degree: 1000").replace(
-        "output_dt: 1.0", "output_dt: 1.0e-9"), encoding="utf-8")
+    params.write_text(coarse_params("    figures: false\n").replace("degree: 5", "degree: 1000"), encoding="utf-8")
     planner = start_planner(backend_snippet, params)
     with dump_on_failure(planner=planner):
-        assert "must be <= 16, got 1000; using the default 6" in wait_for(planner, "parameter 'degree'", 30)
-        assert "using the default 0.25" in wait_for(planner, "parameter 'output_dt'", 30)
-        ready = wait_for(planner, "planner ready", 30)
-        assert "degree=6" in ready and "output_dt=0.25" in ready
+        line = wait_for(planner, "cannot start", 30)
+        assert planner.proc.wait(30) == 2
+        assert f"params file {params}: parameter 'degree': must be <= 16, got 1000" in line
+        assert not any("planner ready" in out for out in planner.output)
 
 
 def test_a_second_planner_under_the_same_name_refuses_to_start(backend_snippet, tmp_path: Path) -> None:  # noqa: F811
@@ -291,16 +290,16 @@ def test_a_second_planner_under_the_same_name_refuses_to_start(backend_snippet, 
     ("sequencing", "fifo", "expected one of scenario, fcfs, optimal"),
 ])
 def test_bad_parameters_are_refused_with_a_reason(name: str, value: object, why: str) -> None:
-    """At start (declare_parameters logs and keeps the default) and on `ros2 param set` (update_params): one line
-    naming the parameter, the value and the range."""
-    from mal_planner.ros.node_params import PARAMETERS, NodeParams, update_params
+    """On `ros2 param set` (NodeParams.updated) and in the params file (check_parameter): one line naming the
+    parameter, the value and the range."""
+    from mal_planner.ros.node_params import PARAMETERS, NodeParams
 
-    defaults = NodeParams(**{k: v[0] for k, v in PARAMETERS.items()})
+    defaults = NodeParams()
     with pytest.raises(ValueError) as err:
-        update_params(defaults, {name: value})
+        defaults.updated({name: value})
     text = str(err.value)
     assert text.startswith(f"parameter {name!r}: ") and why in text and "\n" not in text, text
-    assert update_params(defaults, {name: PARAMETERS[name][0]}) == defaults  # the defaults are in range
+    assert defaults.updated({name: PARAMETERS[name].ros_default()}) == defaults  # the defaults are in range
 
 
 def test_check_track_gates() -> None:

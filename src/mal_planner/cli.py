@@ -10,11 +10,18 @@ import sys
 import time
 from pathlib import Path
 
-from mal_planner.errors import exit_codes_help, outcome_code
+from mal_planner.errors import Outcome, PlanningError, exit_codes_help
 from mal_planner.options import add_arguments, build_plan_options, check_values, values_from_args
 from mal_planner.scenario import ScenarioError, load_scenario
 
 EXIT_CODES = exit_codes_help()
+REFUSALS: dict[Outcome, tuple[str, str]] = {
+    Outcome.INFEASIBLE_REQUEST: ("error", "impossible request"),
+    Outcome.INVALID_INPUT: ("error", ""),
+    Outcome.TIMEOUT: ("timeout", ""),
+    Outcome.INITIALIZER_FAILED: ("error", "initializer failed"),
+}
+"""How mal-plan words a request refused before there is anything to write: the label and what it was."""
 
 
 class _Parser(argparse.ArgumentParser):
@@ -50,22 +57,20 @@ def main(argv: list[str] | None = None) -> int:
         scenario = load_scenario(args.scenario)
     except ScenarioError as exc:
         print(f"mal-plan: error: {exc}", file=sys.stderr)
-        return outcome_code("invalid_input").exit_code
+        return exc.outcome.code.exit_code
     problem = check_values(values_from_args(args), lambda o: o.flag)
     if problem:
         print(f"mal-plan: error: {problem}", file=sys.stderr)
-        return outcome_code("invalid_input").exit_code
+        return Outcome.INVALID_INPUT.code.exit_code
     out_dir = args.out or Path("out") / scenario.name
     problem = _unwritable(out_dir)
     if problem:
         print(f"mal-plan: error: --out {out_dir}: {problem}", file=sys.stderr)
-        return outcome_code("invalid_input").exit_code
+        return Outcome.INVALID_INPUT.code.exit_code
     if args.seed == -1:
         args.seed = secrets.randbelow(2**31)
         print(f"mal-plan: random seed {args.seed}", file=sys.stderr)
     # Imported after argument parsing: CasADi and OMPL take a moment to load.
-    from mal_planner.errors import InfeasibleRequest, TimeLimitReached
-    from mal_planner.initializer import PlanningFailed
     from mal_planner.pipeline import Planner
     from mal_planner.report import summary_table, write_figures, write_outputs
 
@@ -73,15 +78,10 @@ def main(argv: list[str] | None = None) -> int:
     t0 = time.perf_counter()
     try:
         result = Planner(options).plan(scenario, reuse=False)
-    except InfeasibleRequest as exc:
-        print(f"mal-plan: error: {args.scenario}: impossible request: {exc}", file=sys.stderr)
-        return outcome_code(exc.failure_class).exit_code
-    except TimeLimitReached as exc:  # in the initializer: nothing to write yet
-        print(f"mal-plan: timeout: {args.scenario}: {exc}", file=sys.stderr)
-        return outcome_code(exc.failure_class).exit_code
-    except PlanningFailed as exc:
-        print(f"mal-plan: error: {args.scenario}: initializer failed: {exc}", file=sys.stderr)
-        return outcome_code("initializer_failed").exit_code
+    except PlanningError as exc:  # refused before planning, or the initializer found nothing: nothing to write
+        label, what = REFUSALS.get(exc.outcome, ("error", exc.outcome.replace("_", " ")))
+        print(f"mal-plan: {label}: {args.scenario}: {what + ': ' if what else ''}{exc}", file=sys.stderr)
+        return exc.outcome.code.exit_code
     written = write_outputs(result, out_dir, figures="none")
     print(f"{scenario.name}: {len(scenario.aircraft)} aircraft, landing order {' -> '.join(result.order)} "
           f"({time.perf_counter() - t0:.1f} s)")
@@ -92,8 +92,8 @@ def main(argv: list[str] | None = None) -> int:
     failure = result.failure
     if failure is None:
         return 0
-    print(f"mal-plan: {failure[0].replace('_', ' ')}: {failure[1]}", file=sys.stderr)
-    return outcome_code(failure[0]).exit_code
+    print(f"mal-plan: {failure.outcome.replace('_', ' ')}: {failure.reason}", file=sys.stderr)
+    return failure.outcome.code.exit_code
 
 
 def _unwritable(folder: Path) -> str | None:

@@ -8,14 +8,15 @@ from dataclasses import dataclass, replace
 
 from mal_planner.airspace_entry import inside_airspace
 from mal_planner.deadline import Deadline
-from mal_planner.errors import FailureClass, InvalidInput, TimeLimitReached
+from mal_planner.errors import Failure, InvalidInput, Outcome, PlanningError, TimeLimitReached
 from mal_planner.initializer.planners import PlanningFailed, known_specs
 from mal_planner.initializer.sequencer import InitialPlan, Sequencer, plan_initial
 from mal_planner.landing import LandingOptions, LandingResult
 from mal_planner.landing.guess import AircraftGuess, guess_from_initial_plan
 from mal_planner.landing.sequential import SequentialOptimizer
-from mal_planner.landing.solve import LandingOptimizer, make_guesses, make_optimizer, shift_guesses, uses_sequential
-from mal_planner.options import PlanOptions
+from mal_planner.landing.solve import LandingOptimizer, make_guesses, shift_guesses, uses_sequential
+from mal_planner.landing.strategy import make_optimizer
+from mal_planner.options import PlanOptions, resolve_flown, scenario_for
 from mal_planner.scales import Scales
 from mal_planner.scenario import Scenario
 from mal_planner.sequencing.schedule import check_request
@@ -51,8 +52,8 @@ class PlanResult:
         return self.verification is not None and self.verification.verified
 
     @property
-    def failure(self) -> tuple[FailureClass, str] | None:
-        """Why this result is not a verified plan, as (failure class, one-line reason); None if it is.
+    def failure(self) -> Failure | None:
+        """Why this result is not a verified plan (its failure class and one line); None if it is.
 
         A run without the optimizer (``optimize=False``) or without verification is not a failure.
         """
@@ -62,12 +63,13 @@ class PlanResult:
             reasons = [self.stopped] if self.stopped else []
             if self.landing is not None or not reasons:
                 reasons.append(f"optimizer: {self.landing.status if self.landing is not None else 'not run'}")
-            return ("timeout" if self.timed_out else "optimizer_failed"), "; ".join(reasons)
+            return Failure(Outcome.TIMEOUT if self.timed_out else Outcome.OPTIMIZER_FAILED, "; ".join(reasons))
         if self.verification is None:
-            return None if not self.options.verify else ("timeout", "time limit reached before the verification")
+            return None if not self.options.verify else Failure(Outcome.TIMEOUT,
+                                                                "time limit reached before the verification")
         if not self.verification.verified:
             reason = "; ".join(self.verification.reasons[:3])
-            return ("timeout" if self.timed_out else "verification_failed"), reason
+            return Failure(Outcome.TIMEOUT if self.timed_out else Outcome.VERIFICATION_FAILED, reason)
         return None
 
     @property
@@ -139,7 +141,10 @@ class Planner:
         :class:`PlanningFailed` when the initializer finds no path: :class:`InitializerTimeout` (failure class
         ``timeout``, its message names the stage) when the time limit runs out in it.
         """
+        if self.options.tracking_margins:  # the margins of flown plans, sized to this scenario (once)
+            self.options = resolve_flown(self.options, scenario)
         opts = self.options
+        scenario = scenario_for(opts, scenario)
         self._deadline = deadline = Deadline(opts.time_limit_s)
         self._stopped = None
         margin = opts.landing.margins.in_nm(Scales.of(scenario)).airspace_nm
@@ -243,7 +248,7 @@ class Planner:
                 self._stopped = f"{exc}, in the {name}"
                 log.warning("%s", self._stopped)
                 break
-            except (PlanningFailed, ValueError, KeyError, IndexError, RuntimeError) as exc:
+            except (PlanningError, ValueError, RuntimeError) as exc:  # PlanningFailed, infeasible, solver errors
                 log.warning("%s failed: %s", name, " ".join(str(exc).split()) or type(exc).__name__)
                 continue
             if candidate is None:

@@ -72,8 +72,8 @@ def apply_fault(fault: str, limit_bytes: int | None) -> None:
 def plan_row(job: dict[str, Any]) -> dict[str, Any]:
     """Load, plan with the normal pipeline (no figures), classify; the row's columns this process knows."""
     from mal_planner.campaign.metrics import plan_columns, scenario_columns
-    from mal_planner.campaign.outcome import classify
     from mal_planner.campaign.plan_options import to_plan_options
+    from mal_planner.errors import classify
     from mal_planner.pipeline import Planner
     from mal_planner.scenario import scenario_from_text
 

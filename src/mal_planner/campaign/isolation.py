@@ -20,7 +20,7 @@ from pathlib import Path
 from typing import Any
 
 from mal_planner import jsonio
-from mal_planner.campaign.outcome import classify
+from mal_planner.errors import classify
 
 POLL_S = 0.05
 SINGLE_THREAD_ENV = {"OMP_NUM_THREADS": "1", "OPENBLAS_NUM_THREADS": "1", "MKL_NUM_THREADS": "1"}

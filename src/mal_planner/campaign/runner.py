@@ -16,8 +16,8 @@ from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
 from mal_planner.campaign.isolation import run_isolated
-from mal_planner.campaign.outcome import one_line
 from mal_planner.campaign.results import ResultsTable
+from mal_planner.errors import one_line
 
 if TYPE_CHECKING:
     from distributed import Client

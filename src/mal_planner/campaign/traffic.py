@@ -267,8 +267,9 @@ def _airspace(aircraft: list[dict[str, float]], fixed_xy: tuple[float, float] | 
 def fixed_schedule(scenario: Scenario, rng: np.random.Generator,
                    profile: TrafficProfile = THESIS) -> dict[str, float]:
     """Landing times: by earliest time with some adjacent swaps; each >= its earliest + the profile's slack and
-    >= the previous landing + the spacing the pair needs (:func:`landing_spacing`) + a little."""
-    from mal_planner.sequencing.schedule import landing_spacing
+    >= the previous landing + the spacing the pair needs (:func:`~mal_planner.sequencing.schedule.slot_in_order`)
+    + a little, rounded up to 0.1 s."""
+    from mal_planner.sequencing.schedule import slot_in_order
     from mal_planner.sequencing.timing import earliest_landing_times
 
     earliest = earliest_landing_times(scenario)
@@ -279,16 +280,10 @@ def fixed_schedule(scenario: Scenario, rng: np.random.Generator,
             order[i], order[i + 1] = order[i + 1], order[i]
             i += 1
         i += 1
-    times: dict[str, float] = {}
-    previous, leader = -math.inf, None
-    for cs in order:
-        follower = scenario.aircraft_by_callsign(cs)
-        spacing = scenario.landing_spacing_s if leader is None else landing_spacing(scenario, leader, follower)
-        t = max(earliest[cs] + rng.uniform(*profile.fixed_slack_s),
-                previous + spacing + rng.uniform(*profile.fixed_spacing_extra_s))
-        times[cs] = previous = _ceil(t, 0.1)
-        leader = follower
-    return times
+    return slot_in_order(scenario, [scenario.aircraft_by_callsign(cs) for cs in order],
+                         lambda ac: earliest[ac.callsign] + rng.uniform(*profile.fixed_slack_s),
+                         extra=lambda: rng.uniform(*profile.fixed_spacing_extra_s),
+                         rounding=lambda t: _ceil(t, 0.1))
 
 
 def file_name(index: int, n: int, layout: str) -> str:

@@ -11,12 +11,10 @@ from typing import Protocol, runtime_checkable
 
 import numpy as np
 
-from mal_planner.errors import TimeLimitReached
+from mal_planner.errors import PlanningFailed, TimeLimitReached
 from mal_planner.initializer.collision import CollisionChecker
 
-
-class PlanningFailed(RuntimeError):
-    """No obstacle-free path was found; ``str()`` is one line."""
+__all__ = ["InitializerTimeout", "PathPlanner", "PlanningFailed", "path_length", "require_free_endpoints"]
 
 
 class InitializerTimeout(TimeLimitReached, PlanningFailed):

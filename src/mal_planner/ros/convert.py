@@ -20,17 +20,20 @@ from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
+from mal_planner.obstacles import Superquadric
 from mal_planner.units import PLANNER_FRAME, ft_to_m, m_per_s_to_nm_per_s, m_to_nm, nm_per_s_to_m_per_s, nm_to_m
 
 if TYPE_CHECKING:
     from mal_planner.geodesy import GeoFrame
 
 __all__ = [
+    "NoFlyZoneError",
     "aircraft_state_to_planner",
     "euler_from_quaternion",
     "frame_origin_fields",
     "geodetic_path_fields",
     "msg_to_time",
+    "no_fly_zone_update",
     "path_msg",
     "path_to_planner",
     "planner_to_aircraft_state",
@@ -215,3 +218,28 @@ def path_to_planner(msg: Any) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         states[k] = [m_to_nm(float(p.x)), m_to_nm(float(p.y)), m_to_nm(float(p.z)), -pitch, yaw]
         banks[k] = -roll
     return stamps, states, banks
+
+
+class NoFlyZoneError(ValueError):
+    """An invalid ``mal_msgs/NoFlyZone`` message (one-line reason)."""
+
+
+def no_fly_zone_update(msg: Any) -> tuple[str, Superquadric | None]:
+    """``mal_msgs/NoFlyZone`` (metres) -> (its name, the zone as a :class:`Superquadric` in nm, or None to remove
+    it); raises NoFlyZoneError."""
+    name = str(msg.name).strip()
+    if not name:
+        raise NoFlyZoneError("empty name")
+    if bool(msg.remove):
+        return name, None
+    center = [float(msg.center.x), float(msg.center.y), float(msg.center.z)]
+    axes = [float(msg.semi_axes.x), float(msg.semi_axes.y), float(msg.semi_axes.z)]
+    if not all(math.isfinite(v) for v in center + axes):
+        raise NoFlyZoneError(f"{name!r}: non-finite center or semi-axes")
+    if min(axes) <= 0.0:
+        raise NoFlyZoneError(f"{name!r}: semi-axes {axes} m must all be > 0")
+    p = int(msg.p)
+    if p < 2 or p % 2:
+        raise NoFlyZoneError(f"{name!r}: p must be an even integer >= 2, got {p}")
+    return name, Superquadric(name, tuple(float(m_to_nm(v)) for v in center),  # type: ignore[arg-type]
+                              tuple(float(m_to_nm(v)) for v in axes), p)  # type: ignore[arg-type]

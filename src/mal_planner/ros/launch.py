@@ -204,23 +204,24 @@ def summary_table(status: dict[str, Any]) -> str:
     return "\n".join(rows)
 
 
-def closed_loop_params(params: str, scenario: str, out: Path) -> str:
+def closed_loop_params(params: str, scenario: str, out: Path, noise_m: float = 0.0, radar_rate_hz: float = 1.0
+                       ) -> str:
     """The planner's params file for a closed loop: the given one, on simulated time, planning once every aircraft
-    is tracked, replanning when a track strays ten path accuracies from its plan (no sooner than a turn time
-    after the last plan), with the margins of flown plans: :mod:`mal_planner.closedloop.loop`'s rules."""
+    is tracked, with the closed loop's rules (:meth:`~mal_planner.service.rules.ServiceRules.closed_loop`: the
+    deviation threshold from the path accuracy and the radar noise, a turn time between replans) and the margins
+    of flown plans."""
     import yaml
 
-    from mal_planner.closedloop.loop import DEVIATION_ACCURACIES, REPLAN_INTERVAL_TURN_TIMES
-    from mal_planner.scales import Scales
     from mal_planner.scenario import load_scenario
-    from mal_planner.units import METRES_PER_NM
+    from mal_planner.service.rules import ServiceRules
+    from mal_planner.units import m_to_nm, nm_to_m
 
-    sc = load_scenario(scenario)
+    rules = ServiceRules.closed_loop(load_scenario(scenario), noise_sigma_nm=m_to_nm(noise_m),
+                                     radar_period_s=1.0 / radar_rate_hz)
     data = yaml.safe_load(Path(params).read_text(encoding="utf-8")) or {}
     values = data.setdefault("planner", {}).setdefault("ros__parameters", {})
     values.update(use_sim_time=True, settle_time_s=0.0, tracking_margins=True,
-                  deviation_threshold_m=DEVIATION_ACCURACIES * Scales.of(sc).accuracy_nm * METRES_PER_NM,
-                  min_replan_interval_s=Scales.of(sc).seconds(REPLAN_INTERVAL_TURN_TIMES))
+                  deviation_threshold_m=float(nm_to_m(rules.deviation_nm)), min_replan_interval_s=rules.min_interval_s)
     path = out / "planner.closed_loop.params.yaml"
     path.write_text(yaml.safe_dump(data), encoding="utf-8")
     return str(path)
@@ -290,7 +291,7 @@ class Launcher:
         env = child_env(self.out)
         finite = not a.keep_running and (a.replay is not None or a.duration > 0 or a.closed_loop)
         if a.closed_loop:
-            params = closed_loop_params(params, scenario, self.out)
+            params = closed_loop_params(params, scenario, self.out, a.noise_m, a.sim_rate / a.sim_speed)
         print(f"launch: scenario {scenario}, params {params}, out {self.out}, record {bag or 'off'}, "
               f"CYCLONEDDS_URI {env['CYCLONEDDS_URI']}, ROS_DOMAIN_ID {env.get('ROS_DOMAIN_ID', '0')}", flush=True)
         if bag is not None:

@@ -48,6 +48,7 @@ def _serve(conn: Connection, log_level: int) -> None:
     from mal_planner.pipeline import Planner
 
     planner: Planner | None = None
+    given: PlanOptions | None = None
     while True:
         try:
             op, payload = conn.recv()
@@ -63,8 +64,9 @@ def _serve(conn: Connection, log_level: int) -> None:
             if what_if:
                 result = Planner(options).plan(scenario, reuse=False, start_time=start_time)
             else:
-                if planner is None or planner.options != options:
-                    planner = Planner(options)
+                if planner is None or given is None or _but_time_limit(given) != _but_time_limit(options):
+                    planner = Planner(options)  # other options: the next plan starts from scratch
+                planner.options, given = options, options  # a replan's own time limit keeps the warm start
                 result = planner.plan(scenario, reuse=reuse, start_time=start_time)
             conn.send(("ok", result))
         except Exception as exc:  # sent back and raised in the node, as if planned there
@@ -72,6 +74,12 @@ def _serve(conn: Connection, log_level: int) -> None:
                 conn.send(("error", exc))
             except Exception:  # an exception that does not pickle: its text
                 conn.send(("error", RuntimeError(f"{type(exc).__name__}: {exc}")))
+
+
+def _but_time_limit(options: PlanOptions) -> PlanOptions:
+    from dataclasses import replace
+
+    return replace(options, time_limit_s=None)
 
 
 class PlanProcess:

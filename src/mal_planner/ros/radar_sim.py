@@ -14,7 +14,6 @@ summary of what was flown (``<--out>/closed_loop.json``).
 from __future__ import annotations
 
 import argparse
-import json
 import logging
 import math
 import sys
@@ -24,6 +23,7 @@ from typing import Any
 
 import numpy as np
 
+from mal_planner import jsonio
 from mal_planner.closedloop.disturbances import RadarNoise, WindSpec
 from mal_planner.closedloop.simulator import FlightSimulator, SimAircraft, SimOptions
 from mal_planner.ros.bagio import stop_event
@@ -34,6 +34,26 @@ from mal_planner.units import PLANNER_FRAME, kt_to_nm_per_s
 
 STATE_TYPE = "mal_msgs/msg/AircraftState"
 CLOCK_TYPE = "rosgraph_msgs/msg/Clock"
+
+
+PROGRESS_PERIOD_S = 10.0
+"""A progress line every this many wall-clock seconds: simulated time, aircraft airborne and landed."""
+
+
+class Progress:
+    """Prints where a long run is, every ``period_s`` wall-clock seconds."""
+
+    def __init__(self, period_s: float) -> None:
+        self.period_s = period_s
+        self.next_at = time.monotonic() + period_s
+
+    def tick(self, sim: FlightSimulator) -> None:
+        if time.monotonic() < self.next_at:
+            return
+        self.next_at = time.monotonic() + self.period_s
+        flying = len(sim.measurements())
+        print(f"radar_sim: t = {sim.t:.0f} s simulated, {flying} airborne, {len(sim.aircraft) - flying} landed or "
+              "gone", flush=True)
 
 
 class RadarSimulator:
@@ -129,6 +149,7 @@ def main(argv: list[str] | None = None) -> int:
             node.create_subscription("nav_msgs/msg/Path", f"aircraft/{tr.callsign}/path",
                                      _on_path(sim, tr.callsign, log, plans), QOS_LATCHED)  # fmt: skip
     run = {"ticks": 0, "held": 0, "frozen": None, "started": time.monotonic()}
+    progress = Progress(PROGRESS_PERIOD_S)
     hold_until = time.monotonic() + args.wait_for_plan
 
     def on_timer() -> None:
@@ -149,6 +170,7 @@ def main(argv: list[str] | None = None) -> int:
                 per_ac[callsign].publish(msg)
             if shared is not None:
                 shared.publish(msg)
+        progress.tick(sim.sim)
         if args.until_landed and sim.sim.done:
             stop.set()
         if args.duration and sim.sim.t >= args.duration:
@@ -181,8 +203,7 @@ def _report(scenario: Scenario, sim: FlightSimulator, out: str | None, wall_s: f
         from mal_planner.closedloop.figure import figure_closed_loop
 
         Path(out).mkdir(parents=True, exist_ok=True)
-        (Path(out) / "closed_loop.json").write_text(json.dumps(metrics.to_dict(), default=float, indent=1),
-                                                    encoding="utf-8")
+        jsonio.write(Path(out) / "closed_loop.json", metrics.to_dict(), indent=1, default=float)
         figure_closed_loop(scenario, sim, Path(out) / "closed_loop.png")
     return 0 if metrics.success else 1
 

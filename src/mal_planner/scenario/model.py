@@ -12,6 +12,7 @@ from typing import TYPE_CHECKING
 import numpy as np
 
 from mal_planner.dynamics import ControlLimits, DynamicsModel
+from mal_planner.errors import InvalidInput
 from mal_planner.geodesy import GeoFrame
 from mal_planner.obstacles import Gate, Superquadric
 from mal_planner.scenario.sequencing import SequencingOptions
@@ -20,8 +21,10 @@ if TYPE_CHECKING:
     from mal_planner.scenario.schema import ScenarioConfig
 
 
-class ScenarioError(ValueError):
+class ScenarioError(InvalidInput):
     """A scenario that cannot be used; ``str()`` is a single line: ``file: field: reason``."""
+
+    named_in_reason = False
 
     def __init__(self, source: str, field: str, reason: str) -> None:
         self.source, self.field, self.reason = source, field, reason

@@ -15,7 +15,8 @@ from __future__ import annotations
 
 import itertools
 import logging
-from collections.abc import Mapping
+import math
+from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass, field, replace
 
 import numpy as np
@@ -258,3 +259,56 @@ def make_schedule(scenario: Scenario, earliest: Mapping[str, float], margin_s: f
     fixed = frozenset(ac.callsign for ac in scenario.aircraft if ac.landing_time is not None)
     target = {cs: float(t) for cs, t in zip(problem.names, problem.target, strict=True)}
     return LandingSchedule(order, times, dict(earliest), fixed, target, result.strategy, result.status, result.gap)
+
+
+def slot_in_order(scenario: Scenario, order: Sequence[Aircraft], ready: Callable[[Aircraft], float], *,
+                  after: tuple[Aircraft, float] | None = None, extra: Callable[[], float] = lambda: 0.0,
+                  rounding: Callable[[float], float] = float) -> dict[str, float]:
+    """Landing times for aircraft in a given ``order``: each at its ``ready`` time, or its pair's
+    :func:`landing_spacing` (plus ``extra()``) after the landing before it, whichever is later, then ``rounding``;
+    ``after``: the aircraft (and its time) that lands before the first (None: the first is spaced by the scenario's
+    spacing from no one). ``ready`` is called before ``extra`` for each aircraft (a traffic generator's random draws
+    keep their order)."""
+    times: dict[str, float] = {}
+    leader, last = after if after is not None else (None, -math.inf)
+    for ac in order:
+        spacing = scenario.landing_spacing_s if leader is None else landing_spacing(scenario, leader, ac)
+        last = rounding(max(ready(ac), last + spacing + extra()))
+        times[ac.callsign] = last
+        leader = ac
+    return times
+
+
+MIN_TIME_FACTOR = 1.0
+"""Fixed landing times shorter than this factor x (straight distance / speed) cannot be met: given up."""
+UNKNOWN_MARGIN_S = 5.0
+"""An aircraft the scenario does not know lands this long after its straight-line time at the earliest."""
+
+
+def straight_in_time(aircraft: Aircraft, runway: np.ndarray) -> float:
+    """Seconds straight to the runway at the best crab (in the wind its model carries), times MIN_TIME_FACTOR."""
+    return MIN_TIME_FACTOR * float(aircraft.dynamics.air_distance(runway - aircraft.position)) / aircraft.speed
+
+
+def slot_after_fixed(scenario: Scenario, aircraft: list[Aircraft]) -> list[Aircraft]:
+    """Keep the fixed landing times; aircraft without one (e.g. radar tracks the scenario does not know) land after
+    them in order of their straight-in times, each its pair's landing spacing (wake included) behind the one before
+    (:func:`slot_in_order`). Only if that fails (a gap wider than the scenario's largest spacing), or a fixed time
+    cannot be met, the sequencer decides all: the times are all given up."""
+    runway = scenario.runway_state[:3]
+    fixed = [a for a in aircraft if a.landing_time is not None]
+    if not fixed:
+        return aircraft
+    free_all = [replace(a, landing_time=None) for a in aircraft]
+    if not all(a.landing_time is None or a.landing_time >= straight_in_time(a, runway) for a in aircraft):
+        return free_all
+    leader = max(fixed, key=lambda a: a.landing_time)  # type: ignore[arg-type, return-value]
+    order = sorted((a for a in aircraft if a.landing_time is None), key=lambda a: straight_in_time(a, runway))
+    times = slot_in_order(scenario, order, lambda a: straight_in_time(a, runway) + UNKNOWN_MARGIN_S,
+                          after=(leader, float(leader.landing_time)))  # type: ignore[arg-type]
+    previous = [leader, *order]
+    for before, ac in zip(previous, order, strict=False):
+        gap = times[ac.callsign] - (float(before.landing_time) if before is leader else times[before.callsign])
+        if gap > max(scenario.max_landing_spacing_s, landing_spacing(scenario, before, ac)):
+            return free_all  # cannot be slotted in
+    return [replace(a, landing_time=times[a.callsign]) if a.callsign in times else a for a in aircraft]

@@ -1,61 +1,36 @@
-"""Build the scenario of one plan from the base scenario, radar tracks and no-fly zone updates."""
+"""The inputs of one plan: the scenario built from the base scenario, the tracks and the no-fly zones."""
 
 from __future__ import annotations
 
 import math
 from collections.abc import Mapping
 from dataclasses import dataclass, replace
-from typing import Any
 
 import numpy as np
 
 from mal_planner.dynamics import make_dynamics
 from mal_planner.obstacles import Superquadric
 from mal_planner.scenario import Aircraft, Scenario
-from mal_planner.sequencing.schedule import landing_spacing, start_conflicts, vertical_escape_problem
+from mal_planner.sequencing.schedule import slot_after_fixed, start_conflicts, vertical_escape_problem
 from mal_planner.service.tracks import Track
-from mal_planner.units import m_to_nm, nm_per_s_to_kt
+from mal_planner.units import nm_per_s_to_kt
 from mal_planner.wake import categories
 
 DEFAULT_MODEL = "point_mass"
 AIRSPACE_TOL_NM = 0.05
 """Extrapolated states this far outside the airspace are clipped back in; further out they are left out."""
-MIN_TIME_FACTOR = 1.0
-"""Fixed landing times shorter than this factor x (straight distance / speed) cannot be met: given up."""
-UNKNOWN_MARGIN_S = 5.0
-"""An aircraft the scenario does not know lands this long after its straight-line time at the earliest."""
 
 
-class NoFlyZoneError(ValueError):
-    """An invalid ``mal_msgs/NoFlyZone`` message (one-line reason)."""
 
 
-def no_fly_zone_to_superquadric(msg: Any) -> Superquadric:
-    """``mal_msgs/NoFlyZone`` (metres) -> :class:`Superquadric` (nm); raises NoFlyZoneError."""
-    name = str(msg.name).strip()
-    if not name:
-        raise NoFlyZoneError("empty name")
-    center = [float(msg.center.x), float(msg.center.y), float(msg.center.z)]
-    axes = [float(msg.semi_axes.x), float(msg.semi_axes.y), float(msg.semi_axes.z)]
-    if not all(math.isfinite(v) for v in center + axes):
-        raise NoFlyZoneError(f"{name!r}: non-finite center or semi-axes")
-    if min(axes) <= 0.0:
-        raise NoFlyZoneError(f"{name!r}: semi-axes {axes} m must all be > 0")
-    p = int(msg.p)
-    if p < 2 or p % 2:
-        raise NoFlyZoneError(f"{name!r}: p must be an even integer >= 2, got {p}")
-    return Superquadric(name, tuple(float(m_to_nm(v)) for v in center),  # type: ignore[arg-type]
-                        tuple(float(m_to_nm(v)) for v in axes), p)  # type: ignore[arg-type]
-
-
-def apply_no_fly_zone(obstacles: tuple[Superquadric, ...], msg: Any) -> tuple[tuple[Superquadric, ...], str]:
-    """New obstacle tuple after a NoFlyZone message, and a description; raises NoFlyZoneError."""
-    name = str(msg.name).strip()
-    if bool(msg.remove):
+def apply_zone(obstacles: tuple[Superquadric, ...], name: str, zone: Superquadric | None
+               ) -> tuple[tuple[Superquadric, ...], str]:
+    """The obstacles after a no-fly zone update (``zone`` None: remove the zone ``name``), and what changed;
+    ValueError when there is no such zone to remove."""
+    if zone is None:
         if not any(ob.name == name for ob in obstacles):
-            raise NoFlyZoneError(f"cannot remove {name!r}: no such obstacle")
+            raise ValueError(f"cannot remove {name!r}: no such obstacle")
         return tuple(ob for ob in obstacles if ob.name != name), f"removed no-fly zone {name!r}"
-    zone = no_fly_zone_to_superquadric(msg)
     replaced = any(ob.name == name for ob in obstacles)
     out = tuple(ob for ob in obstacles if ob.name != name) + (zone,)
     return out, f"{'replaced' if replaced else 'added'} no-fly zone {name!r} (p={zone.p})"
@@ -127,33 +102,6 @@ def build_plan_scenario(base: Scenario, tracks: Mapping[str, Track], plan_start:
             left_out[one.callsign] = (f"lost separation with {other.callsign} at the plan start ({d:.3f} nm, "
                                       f"minimum {base.separation_nm:g} nm)")
     aircraft = [a for a in aircraft if a.callsign not in left_out]
-    aircraft = _feasible_landing_times(base, aircraft)
+    aircraft = slot_after_fixed(base, aircraft)
     return PlanInputs(replace(base, aircraft=tuple(aircraft)), plan_start, left_out)
 
-
-def _min_time(a: Aircraft, runway: np.ndarray) -> float:
-    """Straight to the runway at the best crab (in the wind its model carries)."""
-    return MIN_TIME_FACTOR * float(a.dynamics.air_distance(runway - a.position)) / a.speed
-
-
-def _feasible_landing_times(base: Scenario, aircraft: list[Aircraft]) -> list[Aircraft]:
-    """Keep the fixed landing times of the known aircraft; aircraft without one (not in the scenario) land
-    after them, each its pair's landing spacing (wake included) behind the one before. Only if that fails, or a
-    fixed time cannot be met, the sequencer decides all."""
-    runway = base.runway_state[:3]
-    fixed = [a for a in aircraft if a.landing_time is not None]
-    if not fixed:
-        return aircraft
-    if not all(a.landing_time is None or a.landing_time >= _min_time(a, runway) for a in aircraft):
-        return [replace(a, landing_time=None) for a in aircraft]
-    out = list(aircraft)
-    leader = max(fixed, key=lambda a: a.landing_time)  # type: ignore[arg-type, return-value]
-    for i in sorted((i for i, a in enumerate(aircraft) if a.landing_time is None),
-                    key=lambda i: _min_time(aircraft[i], runway)):
-        spacing = landing_spacing(base, leader, aircraft[i])
-        last = float(leader.landing_time)  # type: ignore[arg-type]
-        t = max(last + spacing, _min_time(aircraft[i], runway) + UNKNOWN_MARGIN_S)
-        if t - last > max(base.max_landing_spacing_s, spacing):  # cannot be slotted in: the sequencer decides all
-            return [replace(a, landing_time=None) for a in aircraft]
-        out[i] = leader = replace(aircraft[i], landing_time=t)
-    return out

@@ -1,0 +1,229 @@
+"""The planning service without ROS: what the planner node runs and what the closed-loop simulation flies.
+
+:class:`PlanningService` holds the radar intake, the replan policy, the plan book and the inputs of the plans, on
+one clock (the radar's). Its caller only moves data and time: it feeds tracks (:meth:`~PlanningService.take_track`),
+asks on its own schedule whether to plan (:meth:`~PlanningService.poll`), makes the request
+(:meth:`~PlanningService.request`) and runs it with a :class:`~mal_planner.pipeline.Planner` however it likes
+(in a child process, in simulated time), reports how it ended (:meth:`~PlanningService.finish`) and acts on the
+events: plans handed out, kept, stale or withdrawn (:mod:`mal_planner.service.book`). Thread-safe.
+"""
+
+from __future__ import annotations
+
+import logging
+import math
+import threading
+from collections.abc import Mapping
+from dataclasses import replace
+from typing import TYPE_CHECKING
+
+import numpy as np
+
+from mal_planner.obstacles import Superquadric
+from mal_planner.options import PlanOptions, scenario_for
+from mal_planner.scenario import Scenario
+from mal_planner.service.book import Event, PlanBook
+from mal_planner.service.inputs import apply_zone, build_plan_scenario
+from mal_planner.service.intake import TrackIntake, Verdict
+from mal_planner.service.policy import ReplanPolicy, wind_change_reason
+from mal_planner.service.request import PlanRequest
+from mal_planner.service.rules import LEAD_PER_LATENCY, ServiceRules, replan_time_limit, service_plan_options
+from mal_planner.service.tracks import Track
+from mal_planner.trajectory import Reference
+from mal_planner.units import nm_per_s_to_kt
+
+if TYPE_CHECKING:
+    from mal_planner.pipeline import PlanResult
+
+log = logging.getLogger("mal_planner.service")
+
+
+
+
+class PlanningService:
+    """The service's rules over one scenario (see the module docstring)."""
+
+    def __init__(self, scenario: Scenario, rules: ServiceRules, options: PlanOptions | None = None, *,
+                 flown: bool = False) -> None:
+        """``scenario``: what the service knows of the airspace and the aircraft; ``flown``: the plans are flown
+        by aircraft the service watches (plans then keep the margins of flown plans)."""
+        self._lock = threading.RLock()
+        self.scenario = scenario
+        self.rules = rules
+        self.flown = flown
+        self.obstacles = scenario.obstacles
+        self.wind: tuple[float, float] = scenario.wind
+        self._given_options = options or PlanOptions()
+        self.options = service_plan_options(self._given_options, scenario, rules, flown=flown)
+        self.book = PlanBook(rules, self._estimate)
+        self.intake = TrackIntake(scenario, rules, plan_of=self.book.flying.get)
+        self.book.on_handout = self.intake.filter.replanned
+        self.policy = ReplanPolicy(rules)
+        self.latency_s = 0.0
+        """The latest plan's planning time (a replan starts LEAD_PER_LATENCY times this ahead)."""
+        self.epoch: float | None = None
+        """The scenario's times (fixed landing times) count from here: the first track or the first plan."""
+        self.asked = False
+        """A plan was asked for since the last one ended (by the policy or a caller)."""
+        self.planned = False
+        self.in_flight: PlanRequest | None = None
+
+    def _estimate(self, callsign: str, plan: Reference, t: float) -> np.ndarray | None:
+        return self.intake.filter.estimate(callsign, plan, t)
+
+    # -- radar --------------------------------------------------------------------------------------------------
+    def take_track(self, track: Track, frame_id: str, source: str, clock: float, stamp_now: float | None = None
+                   ) -> Verdict:
+        with self._lock:
+            verdict = self.intake.take(track, frame_id, source, clock, stamp_now)
+            if verdict.accepted and self.epoch is None:
+                self.epoch = track.stamp
+            return verdict
+
+    def lose_tracks(self) -> list[Event]:
+        """Forget aircraft not seen for the track timeout; withdraw their plans."""
+        with self._lock:
+            gone = self.intake.lose_tracks()
+            for cs in gone:
+                log.info("aircraft %s not seen for %.0f s: dropped", cs, self.rules.track_timeout_s)
+            if not gone:
+                return []
+            withdrawn = self.book.withdraw(gone, f"track lost (not seen for {self.rules.track_timeout_s:g} s)")
+            return [withdrawn] if withdrawn.callsigns else []
+
+    # -- decisions ----------------------------------------------------------------------------------------------
+    @property
+    def busy(self) -> bool:
+        return self.asked or self.in_flight is not None or bool(self.book.upcoming)
+
+    def poll(self, now: float) -> str | None:
+        """Why the service should plan now (the policy), or None; a reason counts as asked until :meth:`finish`."""
+        with self._lock:
+            first = self.intake.first_seen
+            reason = self.policy.decide(now, self.intake.estimates(), self.book.flying, busy=self.busy,
+                                        planned=self.planned, last_arrival=self.book.last_arrival,
+                                        first_track_at=None if first is None else first[1])
+            if reason is not None:
+                self.asked = True
+            return reason
+
+    def ask(self) -> None:
+        """A caller (a service call) asks for a plan of the radar picture: the policy waits for it."""
+        with self._lock:
+            self.asked = True
+
+    def request(self, reason: str, now: float, *, tracks: Mapping[str, Track] | None = None, lead: bool = True,
+                what_if: bool = False) -> PlanRequest | str:
+        """The plan to make now for ``reason``, or why there is none (one line; the caller then reports
+        :meth:`refused`). From the radar's filtered tracks (or ``tracks``), predicted :data:`LEAD_PER_LATENCY` latest
+        planning times ahead along the plans being flown when ``lead``; a what-if request is answered, never handed
+        out."""
+        with self._lock:
+            given = tracks is not None
+            current = dict(tracks) if given else self.intake.estimates()  # type: ignore[arg-type]
+            minimum = 1 if given else self.rules.min_aircraft
+            if len(current) < minimum:
+                return f"{len(current)} aircraft tracked (min_aircraft {self.rules.min_aircraft}): nothing to plan"
+            lead_s = LEAD_PER_LATENCY * self.latency_s if lead and not what_if else 0.0
+            if lead_s > 0:
+                current = self.book.predicted(current, lead_s)
+            plan_start = max(t.stamp for t in current.values())
+            if self.epoch is None:
+                self.epoch = plan_start
+            inputs = build_plan_scenario(self.base_scenario(), current, plan_start,
+                                         max(0.0, plan_start - self.epoch))
+            for cs, why in inputs.left_out.items():
+                log.warning("aircraft %s left out of the plan: %s", cs, why)
+            options = self.options
+            if self.planned or what_if:
+                options = replace(options, time_limit_s=replan_time_limit(options, self.rules))
+            req = PlanRequest(reason, now, plan_start, inputs, options, what_if, given)
+            if not inputs.scenario.aircraft:
+                return "no aircraft to plan (all left out)"
+            if not what_if:
+                self.in_flight, self.asked, self.planned = req, False, True
+            return req
+
+    def refused(self, now: float, latency_s: float | None = None) -> None:
+        """A radar request was refused (:meth:`request` said why) at ``now``, ``latency_s`` after it was asked: the
+        policy backs off as after a failed plan, but the plans flown are not marked as kept."""
+        with self._lock:
+            self.asked, self.planned = False, True
+            self.book.last_arrival = now
+            if latency_s is not None:
+                self.latency_s = latency_s
+
+    def finish(self, request: PlanRequest, result: PlanResult | None, failure: str | None, now: float,
+               latency_s: float) -> list[Event]:
+        """A plan ended at ``now`` after ``latency_s`` (the caller's measure: wall or CPU time, simulated or not):
+        ``result`` None or ``failure`` set: it failed (the aircraft keep their plans). A what-if plan changes
+        nothing."""
+        with self._lock:
+            if request.what_if:
+                return []
+            self.in_flight = None
+            self.latency_s = latency_s
+            if result is None or failure is not None:
+                kept = self.book.failed(failure or "no result", now)
+                return [kept] if kept is not None else []
+            return self.book.arrive(request, result, now, set(self.intake.store.snapshot()))
+
+    def due(self, now: float) -> list[Event]:
+        """Plans that start by ``now`` handed out (unless stale); kept plans past their expiry withdrawn."""
+        with self._lock:
+            return self.book.due(now, set(self.intake.store.snapshot()))
+
+    # -- the airspace and the wind --------------------------------------------------------------------------------
+    def base_scenario(self) -> Scenario:
+        """The scenario plans start from: the file's, with the no-fly zones and the wind given since, and the options'
+        wake table and sequencing strategy (:func:`~mal_planner.options.scenario_for`)."""
+        with self._lock:
+            base = replace(self.scenario, obstacles=self.obstacles)
+            if self.wind != base.wind:
+                base = base.with_wind(self.wind)
+            return scenario_for(self.options, base)
+
+    def update_zone(self, name: str, zone: Superquadric | None) -> str:
+        """Add, replace (``zone``) or remove (None) a no-fly zone; returns what changed (ValueError: no such zone)."""
+        with self._lock:
+            self.obstacles, what = apply_zone(self.obstacles, name, zone)
+            return what
+
+    def update_wind(self, wind: tuple[float, float]) -> tuple[str, str | None]:
+        """A new wind (nm/s, local frame): the next plans are made in it. Returns the wind in words ('' when it did
+        not change) and the reason to plan now, if it matters (see
+        :func:`~mal_planner.service.policy.wind_change_reason`); ValueError when it is not below the slowest
+        airspeed."""
+        speed = math.hypot(*wind)
+        slowest = min((a.speed for a in self.scenario.aircraft), default=math.inf)
+        if speed >= slowest:
+            raise ValueError(f"{nm_per_s_to_kt(speed):.0f} kt is not below the slowest airspeed "
+                             f"({nm_per_s_to_kt(slowest):.0f} kt)")
+        with self._lock:
+            old, self.wind = self.wind, (float(wind[0]), float(wind[1]))
+            if self.wind == old:
+                return "", None
+            heading = math.degrees(math.atan2(-wind[1], -wind[0])) % 360.0 if speed > 0 else 0.0
+            what = f"wind {nm_per_s_to_kt(speed):.1f} kt from heading {heading:.0f} deg ({self.rules.frame_id})"
+            return what, wind_change_reason(old, self.wind, self.rules, what) if self.book.flying else None
+
+    def set_options(self, options: PlanOptions) -> None:
+        with self._lock:
+            self._given_options = options
+            self.options = service_plan_options(options, self.scenario, self.rules, flown=self.flown)
+
+    def set_rules(self, rules: ServiceRules) -> None:
+        with self._lock:
+            self.rules = rules
+            self.intake.rules = rules
+            self.intake.filter.time_constant_s = rules.filter_time_constant_s
+            self.book.rules = rules
+            self.policy.rules = rules
+            self.options = service_plan_options(self._given_options, self.scenario, rules, flown=self.flown)
+
+    def radar_now(self, clock: float) -> float | None:
+        with self._lock:
+            return self.intake.radar_now(clock)
+
+
+__all__ = ["PlanRequest", "PlanningService"]

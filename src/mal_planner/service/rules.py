@@ -1,0 +1,100 @@
+"""The service's rules in planner units (nm, s): one set of numbers for the node and the closed-loop simulation.
+
+The planner node fills :class:`ServiceRules` from its parameters (:mod:`mal_planner.ros.node_params`), the
+closed loop from its options and the scenario's scales (:meth:`ServiceRules.closed_loop`), and ``mal-launch
+--closed-loop`` gives the node the closed loop's numbers. Every time here is on the radar's clock.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, replace
+
+from mal_planner.options import PlanOptions, resolve_flown
+from mal_planner.options.plan import DEVIATION_ACCURACIES
+from mal_planner.scales import Scales
+from mal_planner.scenario import Scenario
+from mal_planner.service.track_filter import noise_factor
+
+DEVIATION_PER_NOISE = 6.0
+"""... or this many radar-noise sigmas (after the track filter), if more: a deviation the radar can tell from its
+noise."""
+LEAD_PER_LATENCY = 1.5
+"""A replan the policy asks for starts this many times the latest planning time ahead of the tracks it is made
+from (predicted along the plans being flown), so that it reaches the aircraft before it starts."""
+REPLAN_INTERVAL_TURN_TIMES = 1.0
+"""No deviation or periodic replan sooner than this after a plan arrived (thesis: 7.6 s; terminal area 14 s)."""
+REPLAN_LIMIT_TURN_TIMES = 2.0
+"""Wall-clock limit of a replan in turn times (thesis 15 s, a terminal area 28 s; the first plan has the plan
+options' limit): the aircraft fly on meanwhile, and a plan much later than that finds them elsewhere."""
+TRACK_FILTER_TURN_TIMES = 0.5
+"""Time constant of the track filter (:mod:`mal_planner.service.track_filter`) in turn times (thesis 3.8 s: 30 m
+of radar noise at 1 Hz leave 11 m)."""
+ESTABLISHED_TURN_TIMES = 2.0
+"""An aircraft within this many turn times of its planned landing (thesis 15 s, one landing spacing) is left out of
+replans and lands on the plan it flies: replanned from a drifted state seconds before the threshold, it got plans
+that loop back along the airspace's edge (campaign: crossings 260-420 m off the centreline, 400-600 ft high)."""
+
+
+@dataclass(frozen=True)
+class ServiceRules:
+    """When the service plans, from what, and what it does with the result (nm, s on the radar's clock)."""
+
+    deviation_nm: float = 0.0
+    """Replan when an aircraft's track strays this far from the plan it flies; a plan that finds an aircraft this
+    far from it when it starts is stale (not handed out). 0: neither."""
+    min_interval_s: float = 0.0
+    """No replan for a deviation, a new aircraft or the period sooner than this after the last plan arrived (a
+    failed one too); nor a deviation check within this of an aircraft's plan's end (a new plan would come too
+    late to help)."""
+    period_s: float = 0.0
+    """Replan this often regardless of deviations (0: only when something changed)."""
+    filter_time_constant_s: float = 0.0
+    """The track filter's time constant (0: raw radar tracks)."""
+    track_timeout_s: float = 30.0
+    """Forget an aircraft not seen for this long (its plan is withdrawn); 0: never."""
+    kept_plan_expiry_s: float = 0.0
+    """Withdraw the plans kept after a failed replan this long after the first failure; 0: never."""
+    settle_time_s: float = 0.0
+    """The first plan waits this long after the first radar track (so that every aircraft has been seen)."""
+    min_aircraft: int = 1
+    """Plan only with at least this many aircraft tracked."""
+    replan_time_limit_s: float | None = None
+    """Wall-clock limit of a replan (the first plan has the plan options' limit); None: the options' limit."""
+    frame_id: str = "runway"
+    """The frame radar tracks must be given in."""
+
+    @classmethod
+    def closed_loop(cls, scenario: Scenario, *, noise_sigma_nm: float = 0.0, radar_period_s: float = 1.0,
+                    deviation_nm: float | None = None, period_s: float = 0.0,
+                    filter_turn_times: float = TRACK_FILTER_TURN_TIMES,
+                    replan_limit_turn_times: float = REPLAN_LIMIT_TURN_TIMES) -> ServiceRules:
+        """The closed loop's rules, sized by the scenario's scales: the deviation threshold the larger of
+        :data:`DEVIATION_ACCURACIES` path accuracies and :data:`DEVIATION_PER_NOISE` filtered noise sigmas (unless
+        given), a turn time between replans. A simulated radar never misses a scan: an aircraft missing from the
+        latest one has landed (the track timeout is half a period)."""
+        scales = Scales.of(scenario)
+        tau = scales.seconds(filter_turn_times)
+        if deviation_nm is None:
+            deviation_nm = max(DEVIATION_ACCURACIES * scales.accuracy_nm,
+                               DEVIATION_PER_NOISE * noise_sigma_nm * noise_factor(radar_period_s, tau))
+        return cls(deviation_nm=deviation_nm, min_interval_s=scales.seconds(REPLAN_INTERVAL_TURN_TIMES),
+                   period_s=period_s, filter_time_constant_s=tau, track_timeout_s=0.5 * radar_period_s,
+                   replan_time_limit_s=scales.seconds(replan_limit_turn_times))
+
+
+def service_plan_options(options: PlanOptions, scenario: Scenario, rules: ServiceRules, *,
+                         flown: bool) -> PlanOptions:
+    """The plan options the service plans with: aircraft established on final (:data:`ESTABLISHED_TURN_TIMES`) are
+    left out of replans; with ``flown`` (the plans are flown by aircraft that the service watches) or the options'
+    ``tracking_margins``, the margins of flown plans (:func:`~mal_planner.options.tracking_margins`) sized to the
+    deviation threshold."""
+    options = replace(options, landed_within_turn_times=max(options.landed_within_turn_times, ESTABLISHED_TURN_TIMES),
+                      tracking_margins=flown or options.tracking_margins, tracking_threshold_nm=rules.deviation_nm)
+    return resolve_flown(options, scenario)
+
+
+def replan_time_limit(options: PlanOptions, rules: ServiceRules) -> float | None:
+    """A replan's wall-clock limit: the smaller of the options' and the rules' (None: no limit)."""
+    limits = [v for v in (options.time_limit_s, rules.replan_time_limit_s) if v is not None and math.isfinite(v)]
+    return min(limits) if limits else None
