@@ -15,7 +15,8 @@ from test_verification import straight_level
 from mal_planner.errors import InfeasibleRequest
 from mal_planner.landing import LandingOptions
 from mal_planner.landing.guess import straight_line_guess
-from mal_planner.landing.solve import LandingOptimizer, published_times
+from mal_planner.landing.publish import published_times
+from mal_planner.landing.solve import LandingOptimizer
 from mal_planner.ocp import PhaseMesh, PhaseSolution
 from mal_planner.ocp.mesh import layout as mesh_layout
 from mal_planner.options import PlanOptions

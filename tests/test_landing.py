@@ -9,7 +9,8 @@ import numpy as np
 import pytest
 
 from mal_planner.landing import LandingOptions, plan_layout
-from mal_planner.landing.solve import LandingOptimizer, make_guesses, split_segments
+from mal_planner.landing.meshes import split_segments
+from mal_planner.landing.solve import LandingOptimizer, make_guesses
 from mal_planner.ocp import PhaseMesh
 from mal_planner.options import PlanOptions
 from mal_planner.pipeline import Planner, plan
@@ -159,7 +160,7 @@ def test_replan_reuses_the_nlp_and_keeps_absolute_landing_times(thesis) -> None:
 def test_a_replans_mesh_is_the_previous_one_without_the_segments_flown() -> None:
     """Cut once a whole segment is flown (before that: the same mesh, so a joint NLP stays cached); a sliver of a
     segment joins the next one; past the phase's end, one segment."""
-    from mal_planner.landing.solve import mesh_after
+    from mal_planner.landing.meshes import mesh_after
     from mal_planner.ocp import PhaseMesh
 
     mesh = PhaseMesh((0.0, 0.25, 0.5, 0.75, 1.0), (6, 7, 8, 9))

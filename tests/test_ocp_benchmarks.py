@@ -258,7 +258,8 @@ def test_node_derivatives_equal_casadi_s_differentiation(case: str) -> None:
     included."""
     if case != "three_phase_bryson_denham":  # scenarios: the wall's gate; an ellipsoid and a box at midpoints too
         from mal_planner.initializer.sequencer import plan_initial
-        from mal_planner.landing.solve import LandingOptimizer, LandingOptions, make_guesses
+        from mal_planner.landing.base import LandingOptions
+        from mal_planner.landing.solve import LandingOptimizer, make_guesses
         from mal_planner.scenario import load_scenario
 
         sc = load_scenario(f"scenarios/{case}.yaml")

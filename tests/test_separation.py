@@ -8,7 +8,8 @@ import casadi as ca
 import numpy as np
 import pytest
 
-from mal_planner.landing.problem import CYLINDER_P, Margins, ProtectedZone
+from mal_planner.landing.constraints import CYLINDER_P, ProtectedZone
+from mal_planner.landing.margins import Margins
 from mal_planner.scenario import ScenarioError, load_scenario, scenario_from_text
 from mal_planner.units import ft_to_nm
 

@@ -1,9 +1,10 @@
 """The multiple-aircraft landing problem on the general OCP engine (thesis chapter 5, generalised)."""
 
+from mal_planner.landing.base import LandingOptions, LandingResult
 from mal_planner.landing.guess import AircraftGuess, guess_from_initial_plan, straight_line_guess
 from mal_planner.landing.layout import Event, PhaseLayout, plan_layout
 from mal_planner.landing.problem import LandingProblem, build_landing_problem
-from mal_planner.landing.solve import LandingOptions, LandingResult, optimize_landing
+from mal_planner.landing.strategy import optimize_landing
 
 __all__ = [
     "AircraftGuess",

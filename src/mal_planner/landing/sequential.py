@@ -18,28 +18,23 @@ from __future__ import annotations
 import logging
 import time
 from collections.abc import Callable, Sequence
-from dataclasses import dataclass, replace
+from dataclasses import dataclass, field, replace
 
 import numpy as np
 
+from mal_planner.landing.aircraft_plans import combine, earliest_after, guess_from, retimed
+from mal_planner.landing.base import LandingOptions, LandingResult
+from mal_planner.landing.constraints import Intruder
 from mal_planner.landing.guess import AircraftGuess
+from mal_planner.landing.meshes import REFINE_PAD_TURN_TIMES, meshes_after, split_segments
 from mal_planner.landing.pairs import SAMPLES_PER_TURN_TIME, PairScreen
-from mal_planner.landing.problem import Intruder, phase_guesses
-from mal_planner.landing.solve import (
-    REFINE_PAD_TURN_TIMES,
-    LandingOptimizer,
-    LandingOptions,
-    LandingResult,
-    layout_for,
-    meshes_after,
-    split_segments,
-)
+from mal_planner.landing.problem import phase_guesses
+from mal_planner.landing.recovery import Flown, Recovery, Stuck, recover
+from mal_planner.landing.solve import LandingOptimizer, layout_for
 from mal_planner.ocp.solver import INFEASIBLE
 from mal_planner.scales import Scales
 from mal_planner.scenario import Scenario
-from mal_planner.sequencing.schedule import planned_spacing
 from mal_planner.trajectory import closest_approach
-from mal_planner.wake import wake_spacing_s
 
 log = logging.getLogger("mal_planner.optimizer")
 
@@ -48,30 +43,6 @@ Reguess = Callable[[Scenario, str, float, Sequence[tuple[np.ndarray, np.ndarray]
 """(scenario, callsign, landing time, traffic, attempt) -> a new guess of that aircraft that keeps clear of the
 traffic (times and positions of the aircraft planned before it), or None (the initializer's
 :meth:`~mal_planner.initializer.sequencer.Sequencer.replan_one`, given by the pipeline)."""
-
-RECOVERIES = ("another guess", "later landing", "give way", "swap with the previous")
-"""What the sequential strategy tries, in this order, when an aircraft finds no plan against the plans of those
-before it (the joint NLP of everyone is the pipeline's last resort):
-
-* *another guess*: the initializer stretches the aircraft's path anew, clear of the plans made so far (the
-  first guess only kept clear of the others' guesses);
-* *later landing*: where the schedule (not the scenario) set its landing time, it lands as soon as it can after
-  it (a free landing time), else later by half a landing spacing, then one, then two (the aircraft after it move
-  back as far as their spacing needs);
-* *give way*: its plan alone (no intruders) shows which earlier aircraft block it; the last of them is planned
-  again with that plan as an intruder, then the aircraft again against everyone;
-* *swap with the previous*: it takes the previous aircraft's landing slot, and that one is planned after it.
-
-On a replan (``LandingOptions.replanning``) 'later landing' comes first: there the aircraft that find no plan are
-those that fell behind the plan they fly (gusts, the guidance's lag); in the campaigns 'later landing' served 305 of
-346 aircraft that tried it, 'another guess' 14 of 389. Such an aircraft's warm solve that IPOPT finds infeasible goes
-straight to the recovery: its cold retries never found a plan (ten-aircraft closed loop, seed 0: the cold NLP on the
-same mesh 0 of 24 times in the first 12 runs, the solve from the guess 0 of 30 in the first 17) and cost twice the
-first solve."""
-
-
-LATER_BY_SPACINGS = (0.5, 1.0, 2.0)
-"""The delays the recovery 'later landing' tries, in landing spacings."""
 
 INACCURATE_ERROR = 100.0
 """A plan whose mesh refinement stopped (a refined mesh found no solution) at an error estimate more than this
@@ -82,11 +53,22 @@ re-integrated. Plans that stop just above the tolerance (1.04e-5 was seen) are k
 
 
 @dataclass
-class Recovery:
-    callsign: str
-    name: str
-    success: bool
-    seconds: float
+class _Pass:
+    """One pass over the landing order: the plans made so far."""
+
+    order: list[AircraftGuess]
+    before: dict[str, LandingResult]
+    """The previous plans by callsign (a warm start or a refinement)."""
+    parts: list[LandingResult] = field(default_factory=list)
+    kept_parts: list[LandingResult] = field(default_factory=list)
+    """The previous plans kept as they were (their effort is not counted again)."""
+    flown: Flown = field(default_factory=list)
+    recoveries: list[Recovery] = field(default_factory=list)
+
+    def fly(self, part: LandingResult) -> None:
+        """``part``'s aircraft is planned: the later ones keep clear of it."""
+        tr = part.trajectories[0]
+        self.flown.append((tr.callsign, tr.t, tr.positions))
 
 
 class SequentialOptimizer:
@@ -130,7 +112,7 @@ class SequentialOptimizer:
         margins absorb the small change a refinement makes to an intruder's path, and the verification
         that follows checks every pair again."""
         scenario = scenario or self.scenario
-        guesses = [_guess_from(part) for part in previous.parts]
+        guesses = [guess_from(part) for part in previous.parts]
         pad = self.scales.seconds(REFINE_PAD_TURN_TIMES)
         meshes = {part.trajectories[0].callsign: [split_segments(mesh, phase.t0, phase.tf, times, pad)
                                                   for phase, mesh in zip(part.solution.phases, part.solution.meshes,
@@ -145,9 +127,8 @@ class SequentialOptimizer:
         result.recoveries = previous.recoveries + result.recoveries
         return result
 
-    def _solve_one(self, scenario: Scenario, guess: AircraftGuess, flown: list[tuple[str, np.ndarray, np.ndarray]],
-                   before: LandingResult | None, mesh, deadline, earliest: float | None,
-                   options: LandingOptions) -> LandingResult:
+    def solve_one(self, scenario: Scenario, guess: AircraftGuess, flown: Flown, before: LandingResult | None, mesh,
+                  deadline, earliest: float | None, options: LandingOptions) -> LandingResult:
         """One aircraft's plan against the plans ``flown`` before it (those its guess brings near, then any its
         plan comes close to)."""
         scales, screen, sep = self.scales, self.screen, scenario.separation_nm
@@ -203,207 +184,94 @@ class SequentialOptimizer:
         options = replace(self.options, pair_screen=None,
                           max_nlp_iterations=min(self.options.max_nlp_iterations,
                                                  self.options.sequential_max_iterations))
-        order = list(guesses)
-        parts: list[LandingResult] = []
-        before_by_callsign = {p.trajectories[0].callsign: p for p in previous or [] if p.trajectories}
-        kept_parts: list[LandingResult] = []
-        flown: list[tuple[str, np.ndarray, np.ndarray]] = []  # callsign, t, positions of the planned ones
-        recoveries: list[Recovery] = []
+        run = _Pass(list(guesses), {p.trajectories[0].callsign: p for p in previous or [] if p.trajectories})
         t_start = time.perf_counter()
         i = 0
-        while i < len(order):
-            guess = order[i]
+        while i < len(run.order):
+            guess = run.order[i]
             if deadline is not None and deadline.expired():
                 break
-            kept = before_by_callsign.get(guess.callsign) if only is not None and guess.callsign not in only else None
+            kept = run.before.get(guess.callsign) if only is not None and guess.callsign not in only else None
             if kept is not None:
-                kept_parts.append(kept)
-                parts.append(kept)
-                tr = kept.trajectories[0]
-                flown.append((tr.callsign, tr.t, tr.positions))
+                run.kept_parts.append(kept)
+                run.parts.append(kept)
+                run.fly(kept)
                 i += 1
                 continue
-            earliest = None
-            if not options.fixed_landing_times and parts:
-                earliest = self._after(scenario, parts[-1], guess.callsign)
-                if guess.landing_time < earliest:
-                    guess = order[i] = _retimed(guess, earliest)
-            mesh = None if meshes is None else meshes.get(guess.callsign)
-            # A refinement re-plans some aircraft with the others' plans fixed: the later ones too, whose plans kept
-            # clear of this one's former path only (a refined path came 2.96 nm to a later plan, against 3 nm).
-            later = [] if only is None else [
-                (cs, p.trajectories[0].t, p.trajectories[0].positions) for cs, p in before_by_callsign.items()
-                if cs not in {f[0] for f in flown} and cs != guess.callsign]
-            part = self._solve_one(scenario, guess, flown + later, before_by_callsign.get(guess.callsign), mesh,
-                                   deadline, earliest, options)
-            kept = before_by_callsign.get(guess.callsign) if only is not None else None
-            if not part.success and kept is not None:
-                # A refinement that finds no plan for this aircraft keeps its previous one; the others of the pair
-                # are re-planned around it (an aircraft with a fixed landing time could not move away from a
-                # later one passing 2.93 nm from the threshold when it landed; the later one could).
-                log.info("%s: the refinement found no plan (%s); keeping its previous plan", guess.callsign,
-                         part.status)
-                kept_parts.append(kept)
-                part = kept
-            inaccurate = meshes is None and self._inaccurate(part)
-            if (not part.success or inaccurate) and meshes is None:
-                if inaccurate:
-                    log.warning("sequential: %s found no accurate plan (Mesh_Not_Converged: error %.1e, over %gx the "
-                                "tolerance); trying to recover", guess.callsign, part.solution.max_error,
-                                INACCURATE_ERROR)
-                else:
-                    log.warning("sequential: %s found no plan (%s); trying to recover", guess.callsign, part.status)
-                step = self._recover(scenario, order, i, parts, flown, recoveries, deadline, options)
+            part = self._plan_next(scenario, run, i, meshes, deadline, only, options)
+            if meshes is None:
+                step = self._recover_if_stuck(scenario, run, i, part, deadline, options)
                 if step == "swap":  # the previous aircraft is planned again, after this one
-                    parts.pop()
-                    flown.pop()
+                    run.parts.pop()
+                    run.flown.pop()
                     i -= 1
                     continue
                 if step is not None:
                     part = step
-            parts.append(part)
+            run.parts.append(part)
             if not part.success:
-                log.warning("sequential: %s found no plan (%s)", order[i].callsign, part.status)
+                log.warning("sequential: %s found no plan (%s)", run.order[i].callsign, part.status)
                 break
-            tr = part.trajectories[0]
-            flown.append((tr.callsign, tr.t, tr.positions))
+            run.fly(part)
             i += 1
         wall = time.perf_counter() - t_start
-        solved = [p for p in parts if all(p is not k for k in kept_parts)]
-        self.layout = layout_for(scenario, order)
-        result = _combine(parts, len(order), self.layout, wall, solved=solved)
-        result.recoveries = recoveries
+        solved = [p for p in run.parts if all(p is not k for k in run.kept_parts)]
+        self.layout = layout_for(scenario, run.order)
+        result = combine(run.parts, len(run.order), self.layout, wall, solved=solved)
+        result.recoveries = run.recoveries
         return result
 
-    def _inaccurate(self, part: LandingResult) -> bool:
+    def _plan_next(self, scenario: Scenario, run: _Pass, i: int, meshes: dict | None, deadline,
+                   only: set[str] | None, options: LandingOptions) -> LandingResult:
+        """The plan of the aircraft at ``run.order[i]`` against those planned before it (with free landing times,
+        no earlier than the spacing behind the previous one allows); a refinement's that finds none: its previous
+        plan."""
+        guess = run.order[i]
+        earliest = None
+        if not options.fixed_landing_times and run.parts:
+            earliest = earliest_after(scenario, run.parts[-1], guess.callsign)
+            if guess.landing_time < earliest:
+                guess = run.order[i] = retimed(guess, earliest)
+        mesh = None if meshes is None else meshes.get(guess.callsign)
+        # A refinement re-plans some aircraft with the others' plans fixed: the later ones too, whose plans kept
+        # clear of this one's former path only (a refined path came 2.96 nm to a later plan, against 3 nm).
+        later = [] if only is None else [
+            (cs, p.trajectories[0].t, p.trajectories[0].positions) for cs, p in run.before.items()
+            if cs not in {f[0] for f in run.flown} and cs != guess.callsign]
+        part = self.solve_one(scenario, guess, run.flown + later, run.before.get(guess.callsign), mesh,
+                              deadline, earliest, options)
+        kept = run.before.get(guess.callsign) if only is not None else None
+        if not part.success and kept is not None:
+            # A refinement that finds no plan for this aircraft keeps its previous one; the others of the pair
+            # are re-planned around it (an aircraft with a fixed landing time could not move away from a
+            # later one passing 2.93 nm from the threshold when it landed; the later one could).
+            log.info("%s: the refinement found no plan (%s); keeping its previous plan", guess.callsign,
+                     part.status)
+            run.kept_parts.append(kept)
+            part = kept
+        return part
+
+    def _recover_if_stuck(self, scenario: Scenario, run: _Pass, i: int, part: LandingResult, deadline,
+                          options: LandingOptions) -> LandingResult | str | None:
+        """None if ``part`` is a plan accurate enough; else what :func:`~mal_planner.landing.recovery.recover`
+        finds for the aircraft at ``run.order[i]``."""
+        inaccurate = self.inaccurate(part)
+        if part.success and not inaccurate:
+            return None
+        guess = run.order[i]
+        if inaccurate:
+            log.warning("sequential: %s found no accurate plan (Mesh_Not_Converged: error %.1e, over %gx the "
+                        "tolerance); trying to recover", guess.callsign, part.solution.max_error,
+                        INACCURATE_ERROR)
+        else:
+            log.warning("sequential: %s found no plan (%s); trying to recover", guess.callsign, part.status)
+        return recover(self, Stuck(scenario, run.order, i, run.parts, run.flown, run.recoveries, deadline, options))
+
+    def inaccurate(self, part: LandingResult) -> bool:
         """A solved plan whose mesh refinement stopped far above the tolerance (:data:`INACCURATE_ERROR`)."""
         sol = part.solution
         return (part.success and sol is not None and not sol.mesh_converged
                 and sol.max_error > INACCURATE_ERROR * self.options.mesh_tol)
-
-    @staticmethod
-    def _landed(part: LandingResult) -> float:
-        return part.landing_times[part.trajectories[0].callsign]
-
-    @classmethod
-    def _after(cls, scenario: Scenario, leader: LandingResult, follower: str) -> float:
-        """The earliest landing of ``follower`` right after the aircraft planned in ``leader``: its landing plus the
-        spacing the pair needs (:func:`~mal_planner.sequencing.schedule.planned_spacing`, wake included)."""
-        lead = leader.trajectories[0].callsign
-        return cls._landed(leader) + planned_spacing(scenario, scenario.aircraft_by_callsign(lead),
-                                                     scenario.aircraft_by_callsign(follower))
-
-    def _recover(self, scenario: Scenario, order: list[AircraftGuess], i: int, parts: list[LandingResult],
-                 flown: list[tuple[str, np.ndarray, np.ndarray]], recoveries: list[Recovery], deadline,
-                 options: LandingOptions) -> LandingResult | str | None:
-        """Try :data:`RECOVERIES` for the aircraft at ``order[i]``: a plan (``order`` updated), ``"swap"`` (the
-        aircraft and the previous one exchanged in ``order``: plan the previous index again) or None."""
-        guess = order[i]
-        cs = guess.callsign
-        schedule_made = scenario.aircraft_by_callsign(cs).landing_time is None
-        traffic = [(t, pos) for _, t, pos in flown]
-        earliest = self._after(scenario, parts[-1], cs) if parts else None
-
-        def attempt(name: str, run) -> LandingResult | str | None:
-            if deadline is not None and deadline.expired():
-                return None
-            t0 = time.perf_counter()
-            outcome = run()
-            ok = outcome == "swap" or (isinstance(outcome, LandingResult) and outcome.success
-                                       and not self._inaccurate(outcome))
-            recoveries.append(Recovery(cs, name, ok, time.perf_counter() - t0))
-            log.info("sequential: %s: recovery '%s' %s (%.1f s)", cs, name, "worked" if ok else "failed",
-                     time.perf_counter() - t0)
-            return outcome if ok else None
-
-        free_earliest = None if options.fixed_landing_times else earliest
-
-        def another_guess() -> LandingResult | None:
-            new = self.reguess(scenario, cs, guess.landing_time, traffic, len(recoveries)) if self.reguess else None
-            if new is None:
-                return None
-            part = self._solve_one(scenario, new, flown, None, None, deadline, free_earliest, options)
-            if part.success:
-                order[i] = new
-            return part
-
-        def later_landing() -> LandingResult | None:
-            # As little later as it can: its landing time free, no earlier than its slot (nor the spacing behind
-            # the previous one). A replan's aircraft that fell behind its plan (gusts) is seconds late, not half a
-            # spacing: the fixed delays below pushed everyone behind it back, each re-solved far from its guess.
-            soonest = guess.landing_time if earliest is None else max(guess.landing_time, earliest)
-            part = self._solve_one(scenario, _retimed(order[i], soonest), flown, None, None, deadline, soonest,
-                                   replace(options, fixed_landing_times=False))
-            if part.success:  # the time it found is its fixed time from now on (the verification checks it)
-                part.required_landing_times = {cs: self._landed(part)}
-            if not part.success or self._inaccurate(part):
-                for delay in LATER_BY_SPACINGS:  # fixed times a little later: surer than a free-time NLP
-                    later = _retimed(order[i], guess.landing_time + delay * scenario.landing_spacing_s)
-                    part = self._solve_one(scenario, later, flown, None, None, deadline, None, options)
-                    if part.success or (deadline is not None and deadline.expired()):
-                        break
-            if part is not None and part.success:
-                landed = self._landed(part)
-                order[i] = _retimed(order[i], landed)
-                follows = landed
-                for j in range(i + 1, len(order)):  # those after it move back by as much as their spacing needs
-                    follows += planned_spacing(scenario, scenario.aircraft_by_callsign(order[j - 1].callsign),
-                                               scenario.aircraft_by_callsign(order[j].callsign))
-                    if order[j].landing_time < follows and \
-                            scenario.aircraft_by_callsign(order[j].callsign).landing_time is None:
-                        order[j] = _retimed(order[j], follows)
-                    follows = max(follows, order[j].landing_time)
-            return part
-
-        def give_way() -> LandingResult | None:
-            alone = self._solve_one(scenario, order[i], [], None, None, deadline, free_earliest, options)
-            if not alone.success:
-                return None
-            mine = alone.trajectories[0]
-            recheck = scenario.separation_nm + self.screen.recheck_nm(self.scales)
-            blockers = [k for k, (_, t, pos) in enumerate(flown)
-                        if closest_approach(mine.t, mine.positions, t, pos) < recheck]
-            if not blockers:  # its own plan keeps clear of everyone: the failure was the solver's
-                return alone
-            log.info("sequential: %s: its own plan comes close to %s; they give way (latest first)", cs,
-                     ", ".join(flown[b][0] for b in blockers))
-            for k in reversed(blockers):
-                others = flown[:k] + flown[k + 1:] + [(cs, mine.t, mine.positions)]
-                earlier = (self._after(scenario, parts[k - 1], flown[k][0])
-                           if k > 0 and not options.fixed_landing_times else None)
-                moved = self._solve_one(scenario, _guess_from(parts[k]), others, parts[k], None, deadline, earlier,
-                                        options)
-                if not moved.success:
-                    return None
-                parts[k] = moved
-                tr = moved.trajectories[0]
-                flown[k] = (tr.callsign, tr.t, tr.positions)
-            # from its own plan, which the others now keep clear of
-            return self._solve_one(scenario, _guess_from(alone), flown, alone, None, deadline, free_earliest, options)
-
-        def swap() -> str | None:
-            previous = order[i - 1]
-            if scenario.aircraft_by_callsign(previous.callsign).landing_time is not None:
-                return None
-            slot_early, slot_late = previous.landing_time, guess.landing_time
-            swapped = [*order[:i - 1], _retimed(guess, slot_early), _retimed(previous, slot_late), *order[i + 1:]]
-            if not _spaced(scenario, swapped[max(i - 2, 0):i + 2]):
-                return None  # the exchanged slots would break a pair's spacing (e.g. its wake minimum)
-            order[i - 1], order[i] = swapped[i - 1], swapped[i]
-            return "swap"
-
-        steps = [("another guess", another_guess)]
-        if schedule_made and options.fixed_landing_times:
-            steps.insert(0 if options.replanning else 1, ("later landing", later_landing))
-        steps.append(("give way", give_way))
-        if schedule_made and i > 0 and not any(r.callsign == cs and r.name == "swap with the previous"
-                                                 for r in recoveries):
-            steps.append(("swap with the previous", swap))
-        for name, run in steps:
-            outcome = attempt(name, run)
-            if outcome is not None:
-                return outcome
-        return None
 
 
 def _guess_distance(guess: AircraftGuess, t: np.ndarray, pos: np.ndarray, scales: Scales) -> float:
@@ -411,52 +279,3 @@ def _guess_distance(guess: AircraftGuess, t: np.ndarray, pos: np.ndarray, scales
     dt = scales.seconds(1.0 / SAMPLES_PER_TURN_TIME)
     ts = np.arange(0.0, guess.landing_time + dt, dt)
     return closest_approach(ts, guess.state_at(ts)[:, :3], t, pos)
-
-
-def _spaced(scenario: Scenario, guesses: Sequence[AircraftGuess]) -> bool:
-    """Whether consecutive guesses land at least the scenario's spacing and their wake minimum apart (what the
-    verification checks; the slots of a schedule made without a wake table always are)."""
-    def minimum(a: AircraftGuess, b: AircraftGuess) -> float:
-        lead, follow = scenario.aircraft_by_callsign(a.callsign), scenario.aircraft_by_callsign(b.callsign)
-        return wake_spacing_s(scenario.wake, lead.wake_category, follow.wake_category,
-                              scenario.final_ground_speed(follow), scenario.separation_nm, scenario.landing_spacing_s)
-
-    return scenario.wake == "none" or all(b.landing_time - a.landing_time >= minimum(a, b)
-                                          for a, b in zip(guesses[:-1], guesses[1:], strict=True))
-
-
-def _retimed(guess: AircraftGuess, landing_time: float) -> AircraftGuess:
-    scale = landing_time / guess.landing_time
-    return AircraftGuess(guess.callsign, guess.t * scale, guess.states, landing_time,
-                         None if guess.gate_time is None else guess.gate_time * scale)
-
-
-def _guess_from(part: LandingResult) -> AircraftGuess:
-    tr = part.trajectories[0]
-    t, idx = np.unique(tr.t, return_index=True)
-    states = tr.states[idx].copy()
-    states[:, 4] = np.unwrap(states[:, 4])
-    return AircraftGuess(tr.callsign, t, states, part.landing_times[tr.callsign], part.gate_times[tr.callsign])
-
-
-def _combine(parts: list[LandingResult], n: int, layout, wall: float, solved: list[LandingResult]) -> LandingResult:
-    """One result for all aircraft (failed if any part failed or is missing); the effort counts the parts
-    ``solved`` now."""
-    success = len(parts) == n and all(p.success for p in parts)
-    failed = next((p for p in parts if not p.success), None)
-    status = parts[-1].status if success else (
-        f"{failed.trajectories[0].callsign if failed.trajectories else '?'}: {failed.status}" if failed is not None
-        else f"time limit after {len(parts)} of {n} aircraft")
-    merged: dict = {"gate_times": {}, "landing_times": {}, "required_landing_times": {}}
-    for p in parts:
-        for key in merged:
-            merged[key].update(getattr(p, key))
-    return LandingResult(
-        success=success, status=status, trajectories=[tr for p in parts for tr in p.trajectories],
-        gate_times=merged["gate_times"], landing_times=merged["landing_times"],
-        objective=sum(p.objective for p in parts), solve_time=wall, build_time=sum(p.build_time for p in solved),
-        nlp_iterations=sum(p.nlp_iterations for p in solved),
-        mesh_history=[m for p in solved for m in p.mesh_history], layout=layout,
-        solution=parts[-1].solution if parts else None,  # type: ignore[arg-type]
-        phase_names=[f"{p.trajectories[0].callsign}:{name}" for p in parts for name in p.phase_names],
-        required_landing_times=merged["required_landing_times"], parts=parts, strategy="sequential")

@@ -1,0 +1,70 @@
+"""How much stricter than the scenario's minima the landing NLP is."""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+from mal_planner.scales import Scales
+
+
+@dataclass(frozen=True)
+class SafetyMargins:
+    """How much stricter than the scenario's minima the NLP is (the verifier allows no tolerance at all).
+
+    Path constraints hold at the collocation points; between them, and after re-integrating the published
+    controls, a trajectory that rides a constraint can cross it by a little. These margins keep that
+    little on the safe side; where it is not enough the verification finds it and the mesh is refined.
+    Lengths are in units of the scenario's path accuracy (:attr:`mal_planner.scales.Scales.accuracy_nm`,
+    the verification's largest deviation between the published and the flown path: L / 60, 0.005 nm in the
+    thesis, where these were tuned in nm); :meth:`in_nm` resolves them for one scenario.
+    """
+
+    separation: float = 2.0
+    """Added to the minimum separation: each of the two published paths may be the accuracy off the flown one
+    (thesis: 0.01 nm, about 18 m)."""
+    obstacle: float = 2.0
+    """Obstacles are inflated by this in every semi-axis (thesis: 0.01 nm)."""
+    clearance: float = 1e-4
+    """Lower bound of ln ||r||_p of the inflated obstacles at the collocation points (dimensionless)."""
+    gate: float = 0.4
+    """The gate event stays this far inside the hole's edges, beyond the obstacle margin (the wall pieces
+    are rounded p-norm shapes; thesis: 0.002 nm)."""
+    airspace: float = 0.2
+    """The airspace is shrunk by this (thesis: 0.001 nm, about 2 m); the runway threshold is crossed this high
+    above the floor (real approaches cross it at about 15 m), so the flown path never touches the ground early."""
+    bank_rad: float = math.radians(0.5)
+    """Taken off the bank-angle limit (the control interpolant overshoots a riding limit between its
+    collocation points by up to about this; campaigns measured 0.2 deg past a 0.25 deg margin)."""
+    load_factor: float = 1e-3
+    """Taken off both ends of the load-factor limits (dimensionless)."""
+    airspace_bulge: float | None = None
+    """How far a path may pass the airspace less ``airspace`` (and the gate's plane, where a phase keeps it on one
+    side) between its collocation points before the mesh refinement splits the segment; None: unchecked (open loop:
+    the margin absorbs it, and the verification refines where the airspace itself is crossed). Plans that are flown
+    keep the rest of the margin for the aircraft's stray (:func:`mal_planner.closedloop.loop.tracking_margins`)."""
+
+    def in_nm(self, scales: Scales) -> Margins:
+        unit = scales.accuracy_nm
+        return Margins(self.separation * unit, self.obstacle * unit, self.clearance, self.gate * unit,
+                       self.airspace * unit, self.bank_rad, self.load_factor,
+                       None if self.airspace_bulge is None else self.airspace_bulge * unit)
+
+
+@dataclass(frozen=True)
+class Margins:
+    """:class:`SafetyMargins` of one scenario, lengths in nm."""
+
+    separation_nm: float
+    obstacle_nm: float
+    clearance: float
+    gate_nm: float
+    airspace_nm: float
+    bank_rad: float
+    load_factor: float
+    airspace_bulge_nm: float | None = None
+
+    @property
+    def hole_nm(self) -> float:
+        """How far inside the hole's edges the gate event is kept."""
+        return self.obstacle_nm + self.gate_nm
