@@ -100,7 +100,7 @@ def test_cylinder_chords_are_exact() -> None:
 
     1e-4 is the dense sampling's own error.
     """
-    from mal_planner.verification import _cylinder_chords
+    from mal_planner.verification.separation import _cylinder_chords
     rng = np.random.default_rng(1)
     n = 600
     rel = rng.uniform(-1, 1, (3, n)) * np.array([[1], [1], [0.3]])
@@ -266,9 +266,10 @@ def test_separation_of_pairs_of_unequal_lengths(thesis) -> None:
 
 
 def test_verification_is_independent_of_the_transcription() -> None:
-    tree = ast.parse(Path("src/mal_planner/verification.py").read_text())
-    modules = {node.module for node in ast.walk(tree) if isinstance(node, ast.ImportFrom)}
-    modules |= {alias.name for node in ast.walk(tree) if isinstance(node, ast.Import) for alias in node.names}
+    trees = [ast.parse(path.read_text()) for path in sorted(Path("src/mal_planner/verification").glob("*.py"))]
+    modules = {node.module for tree in trees for node in ast.walk(tree) if isinstance(node, ast.ImportFrom)}
+    modules |= {alias.name for tree in trees for node in ast.walk(tree) if isinstance(node, ast.Import)
+                for alias in node.names}
     assert not any(m and ("ocp" in m or "landing" in m or "casadi" in m) for m in modules), modules
 
 
