@@ -224,7 +224,8 @@ def run_child(kind: str, scenario: Path, label: str, n: int, work: Path, timeout
 def child_nlp_size(scenario_path: str) -> dict[str, Any]:
     """Size of the NLP of the initial mesh, built the way the Planner's first solve builds it."""
     from mal_planner.initializer import plan_initial
-    from mal_planner.landing.solve import LandingOptimizer, LandingOptions, make_guesses
+    from mal_planner.landing.base import LandingOptions
+    from mal_planner.landing.solve import LandingOptimizer, make_guesses
     from mal_planner.scenario import load_scenario
 
     sc = load_scenario(scenario_path)

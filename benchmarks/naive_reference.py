@@ -39,8 +39,9 @@ import numpy as np  # noqa: E402
 
 from mal_planner.dynamics import bank_limit_residuals  # noqa: E402
 from mal_planner.initializer import plan_initial  # noqa: E402
+from mal_planner.landing.base import LandingOptions  # noqa: E402
 from mal_planner.landing.problem import GAMMA_BOUND, HEADING_BOUND, SafetyMargins, phase_guess  # noqa: E402
-from mal_planner.landing.solve import LandingOptions, layout_for, make_guesses  # noqa: E402
+from mal_planner.landing.solve import layout_for, make_guesses  # noqa: E402
 from mal_planner.scales import Scales  # noqa: E402
 from mal_planner.scenario import load_scenario  # noqa: E402
 from mal_planner.trajectory import Trajectory  # noqa: E402

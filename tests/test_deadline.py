@@ -12,9 +12,10 @@ import pytest
 from mal_planner.deadline import Deadline
 from mal_planner.errors import TimeLimitReached, classify
 from mal_planner.initializer import MultiRRT, PlanningFailed, Sequencer
+from mal_planner.initializer.base import InitializerTimeout
 from mal_planner.initializer.collision import CollisionChecker
 from mal_planner.initializer.ompl_planners import available_ompl_planners
-from mal_planner.initializer.planners import InitializerTimeout, make_planner
+from mal_planner.initializer.planners import make_planner
 from mal_planner.options import PlanOptions
 from mal_planner.pipeline import Planner
 from mal_planner.scenario import load_scenario

@@ -13,7 +13,7 @@ import pytest
 from mal_planner.initializer.approach import FINAL_RADII, approach_for
 from mal_planner.initializer.collision import CollisionChecker
 from mal_planner.initializer.frame import RunwayFrame
-from mal_planner.landing.solve import within_limits
+from mal_planner.landing.publish import within_limits
 from mal_planner.ocp import PhaseMesh
 from mal_planner.ocp.mesh import refine, segment_errors
 from mal_planner.options import PlanOptions

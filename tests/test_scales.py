@@ -8,8 +8,8 @@ import math
 import pytest
 
 from mal_planner.campaign.traffic import TrafficSpec, generate_one
+from mal_planner.landing.margins import SafetyMargins
 from mal_planner.landing.pairs import PairScreen
-from mal_planner.landing.problem import SafetyMargins
 from mal_planner.profiles import TMA
 from mal_planner.scales import Scales
 from mal_planner.scenario import load_scenario

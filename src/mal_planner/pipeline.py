@@ -8,8 +8,8 @@ from dataclasses import dataclass, replace
 
 from mal_planner.airspace_entry import inside_airspace
 from mal_planner.deadline import Deadline
-from mal_planner.errors import Failure, InvalidInput, Outcome, PlanningError, TimeLimitReached
-from mal_planner.initializer.planners import PlanningFailed, known_specs
+from mal_planner.errors import Failure, InvalidInput, Outcome, PlanningError, PlanningFailed, TimeLimitReached
+from mal_planner.initializer.planners import known_specs
 from mal_planner.initializer.sequencer import InitialPlan, Sequencer, plan_initial
 from mal_planner.landing import LandingOptions, LandingResult
 from mal_planner.landing.guess import AircraftGuess, guess_from_initial_plan

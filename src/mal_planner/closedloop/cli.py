@@ -12,19 +12,20 @@ import logging
 import math
 import sys
 import time
-from dataclasses import replace
 from pathlib import Path
 
 from mal_planner import jsonio
 from mal_planner.closedloop.bluesky_sim import make_simulator
 from mal_planner.closedloop.disturbances import DEFAULT_GUST_TAU_S, WindSpec
-from mal_planner.closedloop.loop import PLAN_TIME_LIMIT_S, ClosedLoopOptions, run_closed_loop
+from mal_planner.closedloop.loop import ClosedLoopOptions, run_closed_loop
 from mal_planner.closedloop.metrics import ClosedLoopMetrics, measure
 from mal_planner.closedloop.simulator import LOAD_FACTOR_LAG_S, SimOptions
-from mal_planner.options import PlanOptions
+from mal_planner.options import SERVICE_TIME_LIMIT_S, add_arguments, build_plan_options, check_values, values_from_args
 from mal_planner.scenario import ScenarioError, load_scenario
 from mal_planner.units import kt_to_nm_per_s, nm_per_s_to_kt
 
+PLAN_FLAGS = ("initializer", "seed", "strategy", "mesh_tol", "time_limit_s", "wake_table", "sequencing")
+"""The plan options mal-closed-loop offers (from the one option table; the time limit's default is the node's)."""
 EXIT_CODES = """exit codes:
   0  everyone landed with every minimum kept on the flown tracks
   1  someone did not land, or a minimum was broken (the reasons are printed)
@@ -78,12 +79,11 @@ def build_parser() -> argparse.ArgumentParser:
                    help="replan this often as well as on deviations, s (default: 0, only on deviations)")
     p.add_argument("--planning-time-factor", type=_nonnegative, default=1.0,
                    help="simulated seconds charged per second of planning (default: 1, honest)")
-    p.add_argument("--time-limit", type=_positive, default=PLAN_TIME_LIMIT_S, metavar="S",
-                   help="wall-clock limit of each plan, s (default: %(default)s, the planner node's)")
     p.add_argument("--simulator", choices=("ours", "bluesky"), default="ours",
                    help="who flies the plans: our FlightSimulator, or BlueSky's aircraft and autopilot (steady wind "
                         "only; needs the bluesky extra) (default: %(default)s)")
-    p.add_argument("--seed", type=int, default=0, help="seed of the initializer and the disturbances (default: 0)")
+    plan = p.add_argument_group("plan options (as in mal-plan; the seed seeds the disturbances too)")
+    add_arguments(plan, names=PLAN_FLAGS, defaults={"time_limit_s": SERVICE_TIME_LIMIT_S})
     p.add_argument("--no-figure", action="store_true", help="no PNG")
     p.add_argument("-q", "--quiet", action="store_true", help="warnings and the summary only")
     return p
@@ -122,6 +122,10 @@ def summary_lines(m: ClosedLoopMetrics, planner_side: bool = True) -> list[str]:
 
 def main(argv: list[str] | None = None) -> int:
     args = build_parser().parse_args(argv)
+    values = values_from_args(args, PLAN_FLAGS)
+    if (problem := check_values(values, lambda o: o.flag)) is not None:
+        print(f"mal-closed-loop: {problem}", file=sys.stderr)
+        return 2
     logging.basicConfig(level=logging.WARNING if args.quiet else logging.INFO,
                         format="%(asctime)s %(levelname).1s %(name)s: %(message)s", datefmt="%H:%M:%S")
     for noisy in ("mal_planner.ocp", "mal_planner.landing", "mal_planner.initializer"):
@@ -154,10 +158,11 @@ def main(argv: list[str] | None = None) -> int:
         print(f"mal-closed-loop: {exc}", file=sys.stderr)
         return 2
     options = ClosedLoopOptions(
-        sim=SimOptions(wind=wind, plan_delay_s=args.delay_s, load_factor_lag_s=args.lag_s, seed=args.seed),
-        plan=replace(PlanOptions(), seed=args.seed, time_limit_s=args.time_limit),
+        sim=SimOptions(wind=wind, plan_delay_s=args.delay_s, load_factor_lag_s=args.lag_s,
+                       seed=None if args.seed < 0 else args.seed),
+        plan=build_plan_options(values),
         planner_knows_wind=not args.unknown_wind, radar_noise_m=args.noise_m, radar_period_s=args.radar_period_s,
-        replan_period_s=args.replan_period_s, planning_time_factor=args.planning_time_factor)
+        replan_period_s=args.replan_period_s, planning_time_factor=args.planning_time_factor, progress=not args.quiet)
     out = args.out or Path("out") / "closed_loop" / scenario.name
     out.mkdir(parents=True, exist_ok=True)
     t0 = time.perf_counter()

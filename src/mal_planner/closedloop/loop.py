@@ -26,7 +26,7 @@ import numpy as np
 
 from mal_planner.closedloop.disturbances import RadarNoise, WindSpec
 from mal_planner.closedloop.simulator import FlightSimulator, SimOptions
-from mal_planner.options import PlanOptions
+from mal_planner.options import SERVICE_TIME_LIMIT_S, PlanOptions
 from mal_planner.pipeline import Planner, PlanResult
 from mal_planner.scales import Scales
 from mal_planner.scenario import Scenario
@@ -43,8 +43,8 @@ SimulatorFactory = Callable[[Scenario, SimOptions], FlightSimulator]
 
 RADAR_PERIOD_S = 1.0
 """Track update period: ADS-B's 1 Hz (a terminal radar turns in 4-5 s)."""
-PLAN_TIME_LIMIT_S = 60.0
-"""Wall-clock limit of one plan (the planner node's ``planning_time_limit_s``): the best result so far then."""
+PLAN_TIME_LIMIT_S = SERVICE_TIME_LIMIT_S
+"""Wall-clock limit of one plan: the planner node's (``planning_time_limit_s``), the best result so far then."""
 OVERRUN_TURN_TIMES = 20.0
 """The run ends this long after the first plan's last landing if aircraft are still flying."""
 PROGRESS_PERIOD_S = 10.0

@@ -10,14 +10,11 @@ from __future__ import annotations
 from collections.abc import Callable
 from typing import Any
 
-from mal_planner.initializer.base import InitializerTimeout, PathPlanner, PlanningFailed
+from mal_planner.initializer.base import PathPlanner
 from mal_planner.initializer.multi_rrt import MultiRRT
 from mal_planner.initializer.ompl_planners import OMPL_PREFIX, OmplPlanner, available_ompl_planners
 
-# PlanningFailed and InitializerTimeout live in .base; callers outside the initializer (pipeline, campaign.outcome,
-# tests/test_deadline.py) still import them from here.
-__all__ = ["InitializerTimeout", "PlannerFactory", "PlanningFailed", "known_specs", "make_planner",
-           "register_planner"]
+__all__ = ["PlannerFactory", "known_specs", "make_planner", "register_planner"]
 
 PlannerFactory = Callable[..., PathPlanner]
 _REGISTRY: dict[str, PlannerFactory] = {"multi-rrt": MultiRRT}

@@ -21,10 +21,12 @@ def check_values(values: Mapping[str, Any], spelling: Callable[[Option], str | N
     return None
 
 
-def add_arguments(parser: Any, names: tuple[str, ...] | None = None, flags: Mapping[str, str] | None = None) -> None:
+def add_arguments(parser: Any, names: tuple[str, ...] | None = None, flags: Mapping[str, str] | None = None,
+                  defaults: Mapping[str, Any] | None = None) -> None:
     """Add the options that have a flag (``names``: only these) to an argparse parser or group; ``flags``
-    renames some (e.g. the campaigns' ``--plan-time-limit-s``). Values are converted here and checked by the
-    caller with :func:`check_values` (one line naming the flag, as the other errors of the command)."""
+    renames some (e.g. the campaigns' ``--plan-time-limit-s``), ``defaults`` replaces some defaults (e.g. the
+    service's time limit). Values are converted here and checked by the caller with :func:`check_values` (one
+    line naming the flag, as the other errors of the command)."""
     for option in PLAN_OPTIONS:
         if option.flag is None or (names is not None and option.name not in names):
             continue
@@ -33,8 +35,9 @@ def add_arguments(parser: Any, names: tuple[str, ...] | None = None, flags: Mapp
             parser.add_argument(flag, dest=option.name, action="store_const", const=option.flag_sets,
                                 default=option.default, help=option.flag_help or option.help)
             continue
-        default_text = "" if option.default is None else " (default: %(default)s)"
-        parser.add_argument(flag, dest=option.name, type=option.kind, default=option.default,
+        default = (defaults or {}).get(option.name, option.default)
+        default_text = "" if default is None else " (default: %(default)s)"
+        parser.add_argument(flag, dest=option.name, type=option.kind, default=default,
                             choices=option.choices or None, metavar=option.metavar,
                             help=option.help + (f" [{option.unit}]" if option.unit else "") + default_text)
 

@@ -13,7 +13,7 @@ from dataclasses import dataclass, field, replace
 from typing import Any
 
 from mal_planner.landing.base import LandingOptions
-from mal_planner.landing.problem import SafetyMargins
+from mal_planner.landing.margins import SafetyMargins
 from mal_planner.options.option import Option
 from mal_planner.options.table import PLAN_OPTIONS
 from mal_planner.scales import Scales
