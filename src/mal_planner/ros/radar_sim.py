@@ -116,88 +116,126 @@ def parse_args(argv: list[str] | None = None) -> argparse.Namespace:
     return args
 
 
+def _checked_inputs(args: argparse.Namespace) -> tuple[Scenario, WindSpec] | str:
+    """The scenario and the wind to fly, or why not (one line)."""
+    try:
+        scenario = load_scenario(args.scenario)
+    except ScenarioError as exc:
+        return str(exc)
+    wind = WindSpec(scenario.wind, kt_to_nm_per_s(args.gust_kt))
+    if wind.speed + 3.0 * wind.gust_sigma >= min(a.speed * math.cos(a.state0[3]) for a in scenario.aircraft):
+        return "--gust-kt: the wind plus 3 x the gusts is not below the slowest airspeed"
+    return scenario, wind
+
+
+class SimulatorNode:
+    """The simulator on a node: radar out on a timer, plans in on each aircraft's path topic."""
+
+    def __init__(self, args: argparse.Namespace, scenario: Scenario, wind: WindSpec) -> None:
+        from mal_planner.ros.transport import QOS_DEFAULT, QOS_LATCHED, create_node
+
+        self.args = args
+        self.node = node = create_node("radar_sim", args.namespace)
+        self.log = node.get_logger()
+        options = SimOptions(wind=wind, plan_delay_s=args.delay_s, seed=args.seed)
+        self.sim = sim = RadarSimulator(scenario, t0=node.now(), noise_m=args.noise_m, seed=args.seed,
+                                        options=options)
+        self.per_ac = {} if args.topics == "shared" else {
+            tr.callsign: node.create_publisher(STATE_TYPE, f"aircraft/{tr.callsign}/state", QOS_DEFAULT)
+            for tr in sim.tracks}
+        self.shared = node.create_publisher(STATE_TYPE, "radar/tracks", QOS_DEFAULT) \
+            if args.topics != "per-aircraft" else None
+        self.clock = node.create_publisher(CLOCK_TYPE, "/clock", QOS_DEFAULT) if args.clock else None
+        self.plans: dict[str, int] = {}
+        self.started = time.monotonic()
+        self.first_plan_s: float | None = None
+        """Wall-clock seconds from the start to the first plan received."""
+        if not args.no_follow:
+            for tr in sim.tracks:
+                node.create_subscription("nav_msgs/msg/Path", f"aircraft/{tr.callsign}/path",
+                                         self._on_path(tr.callsign), QOS_LATCHED)
+        self.ticks, self.held, self.frozen = 0, 0, None
+        self.hold_until = time.monotonic() + args.wait_for_plan
+        self.progress = Progress(PROGRESS_PERIOD_S)
+        self.stop = stop_event()
+        node.create_timer(1.0 / args.rate, self._on_timer)
+
+    def _on_timer(self) -> None:
+        args, sim = self.args, self.sim
+        if args.wait_for_plan > 0 and not self.plans and time.monotonic() < self.hold_until:
+            self.held += 1  # the same tracks again (duplicates to the planner): the traffic appears, time stands still
+        else:
+            self.ticks += 1
+            self.frozen = None
+            sim.step_to(sim.t0 + self.ticks * args.speed / args.rate)
+        if self.clock is not None:
+            self.clock.publish(self.node.types.msg(CLOCK_TYPE)(clock=time_to_msg(self.node.types, sim.t)))
+        if self.frozen is None:
+            self.frozen = sim.measurements()
+        for callsign, state, speed, wake in self.frozen:
+            msg = planner_to_aircraft_state(self.node.types, callsign, sim.t, state, speed, wake, PLANNER_FRAME)
+            if callsign in self.per_ac:
+                self.per_ac[callsign].publish(msg)
+            if self.shared is not None:
+                self.shared.publish(msg)
+        self.progress.tick(sim.sim)
+        if (args.until_landed and sim.sim.done) or (args.duration and sim.sim.t >= args.duration):
+            self.stop.set()
+
+    def _on_path(self, callsign: str) -> Any:
+        def callback(msg: Any) -> None:
+            stamps, states, _bank = path_to_planner(msg)
+            self.sim.set_plan(callsign, stamps, states)
+            self.plans[callsign] = self.plans.get(callsign, 0) + 1
+            if self.first_plan_s is None and len(stamps):
+                self.first_plan_s = time.monotonic() - self.started
+            if len(stamps):
+                self.log.info("%s: flying plan #%d (%d poses, %.0f s) from t=%.1f s", callsign, self.plans[callsign],
+                              len(stamps), stamps[-1] - stamps[0], self.sim.sim.t)
+            else:
+                self.log.info("%s: plan withdrawn at t=%.1f s: holding heading, levelling off", callsign,
+                              self.sim.sim.t)
+
+        return callback
+
+    def spin(self) -> None:
+        try:
+            while not self.stop.is_set():
+                self.node.spin_once(0.1)
+        except KeyboardInterrupt:
+            pass
+        finally:
+            self.node.shutdown()
+        self.log.info("published %d updates (%.0f s simulated)", self.ticks + self.held, self.sim.sim.t)
+
+
 def main(argv: list[str] | None = None) -> int:
     """Run the simulator node; 0 on clean exit (with --until-landed: everyone landed safely), 1 if not, 2 on bad
     input."""
     args = parse_args(argv)
     logging.basicConfig(level=logging.INFO, format="[%(levelname)s] [%(name)s]: %(message)s")
-    try:
-        scenario = load_scenario(args.scenario)
-    except ScenarioError as exc:
-        print(f"radar_sim: {exc}", file=sys.stderr)
+    inputs = _checked_inputs(args)
+    if isinstance(inputs, str):
+        print(f"radar_sim: {inputs}", file=sys.stderr)
         return 2
-    wind = WindSpec(scenario.wind, kt_to_nm_per_s(args.gust_kt))
-    if wind.speed + 3.0 * wind.gust_sigma >= min(a.speed * math.cos(a.state0[3]) for a in scenario.aircraft):
-        print("radar_sim: --gust-kt: the wind plus 3 x the gusts is not below the slowest airspeed", file=sys.stderr)
-        return 2
-    from mal_planner.ros.transport import QOS_DEFAULT, QOS_LATCHED, create_node
-
-    node = create_node("radar_sim", args.namespace)
-    stop = stop_event()
-    log = node.get_logger()
-    options = SimOptions(wind=wind, plan_delay_s=args.delay_s, seed=args.seed)
-    sim = RadarSimulator(scenario, t0=node.now(), noise_m=args.noise_m, seed=args.seed, options=options)
-    per_ac = {}
-    if args.topics in ("per-aircraft", "both"):
-        per_ac = {tr.callsign: node.create_publisher(STATE_TYPE, f"aircraft/{tr.callsign}/state", QOS_DEFAULT)
-                  for tr in sim.tracks}  # fmt: skip
-    shared = node.create_publisher(STATE_TYPE, "radar/tracks", QOS_DEFAULT) if args.topics != "per-aircraft" else None
-    clock = node.create_publisher(CLOCK_TYPE, "/clock", QOS_DEFAULT) if args.clock else None
-    plans: dict[str, int] = {}
-    if not args.no_follow:
-        for tr in sim.tracks:
-            node.create_subscription("nav_msgs/msg/Path", f"aircraft/{tr.callsign}/path",
-                                     _on_path(sim, tr.callsign, log, plans), QOS_LATCHED)  # fmt: skip
-    run = {"ticks": 0, "held": 0, "frozen": None, "started": time.monotonic()}
-    progress = Progress(PROGRESS_PERIOD_S)
-    hold_until = time.monotonic() + args.wait_for_plan
-
-    def on_timer() -> None:
-        holding = args.wait_for_plan > 0 and not plans and time.monotonic() < hold_until
-        if holding:  # the same tracks again (duplicates to the planner): the traffic appears, time stands still
-            run["held"] += 1
-        else:
-            run["ticks"] += 1
-            run["frozen"] = None
-            sim.step_to(sim.t0 + run["ticks"] * args.speed / args.rate)
-        if clock is not None:
-            clock.publish(node.types.msg(CLOCK_TYPE)(clock=time_to_msg(node.types, sim.t)))
-        if run["frozen"] is None:
-            run["frozen"] = sim.measurements()
-        for callsign, state, speed, wake in run["frozen"]:
-            msg = planner_to_aircraft_state(node.types, callsign, sim.t, state, speed, wake, PLANNER_FRAME)
-            if callsign in per_ac:
-                per_ac[callsign].publish(msg)
-            if shared is not None:
-                shared.publish(msg)
-        progress.tick(sim.sim)
-        if args.until_landed and sim.sim.done:
-            stop.set()
-        if args.duration and sim.sim.t >= args.duration:
-            stop.set()
-
-    node.create_timer(1.0 / args.rate, on_timer)
-    print(f"radar_sim: {len(sim.tracks)} aircraft at {args.rate:g} Hz ({args.topics}), {args.speed:g}x real time"
-          f"{', /clock' if clock is not None else ''}", flush=True)
-    try:
-        while not stop.is_set():
-            node.spin_once(0.1)
-    except KeyboardInterrupt:
-        pass
-    finally:
-        node.shutdown()
-    log.info("published %d updates (%.0f s simulated)", run["ticks"] + run["held"], sim.sim.t)
+    scenario, wind = inputs
+    sim_node = SimulatorNode(args, scenario, wind)
+    print(f"radar_sim: {len(sim_node.sim.tracks)} aircraft at {args.rate:g} Hz ({args.topics}), {args.speed:g}x real "
+          f"time{', /clock' if args.clock else ''}", flush=True)
+    sim_node.spin()
     if args.until_landed:
-        return _report(scenario, sim.sim, args.out, time.monotonic() - run["started"])
+        return _report(scenario, sim_node.sim.sim, args.out, time.monotonic() - sim_node.started,
+                       sim_node.first_plan_s)
     return 0
 
 
-def _report(scenario: Scenario, sim: FlightSimulator, out: str | None, wall_s: float) -> int:
+def _report(scenario: Scenario, sim: FlightSimulator, out: str | None, wall_s: float,
+            first_plan_s: float | None) -> int:
     """Print (and save) what was flown; 0 when everyone landed with every minimum kept."""
     from mal_planner.closedloop.cli import summary_lines
     from mal_planner.closedloop.metrics import measure_flight
 
-    metrics = measure_flight(scenario, sim, wall_s=wall_s)
+    metrics = measure_flight(scenario, sim, wall_s=wall_s, first_plan_s=first_plan_s)
     print("\n".join(summary_lines(metrics, planner_side=False)), flush=True)
     if out:
         from mal_planner.closedloop.figure import figure_closed_loop
@@ -208,21 +246,7 @@ def _report(scenario: Scenario, sim: FlightSimulator, out: str | None, wall_s: f
     return 0 if metrics.success else 1
 
 
-def _on_path(sim: RadarSimulator, callsign: str, log: Any, plans: dict[str, int]) -> Any:
-    def callback(msg: Any) -> None:
-        stamps, states, _bank = path_to_planner(msg)
-        sim.set_plan(callsign, stamps, states)
-        plans[callsign] = plans.get(callsign, 0) + 1
-        if len(stamps):
-            log.info("%s: flying plan #%d (%d poses, %.0f s) from t=%.1f s", callsign, plans[callsign], len(stamps),
-                     stamps[-1] - stamps[0], sim.sim.t)
-        else:
-            log.info("%s: plan withdrawn at t=%.1f s: holding heading, levelling off", callsign, sim.sim.t)
-
-    return callback
-
-
-__all__ = ["RadarSimulator", "main"]
+__all__ = ["RadarSimulator", "SimulatorNode", "main"]
 
 if __name__ == "__main__":
     sys.exit(main())

@@ -166,20 +166,21 @@ class PlanBook:
                                    self.current.lost)
         return Withdrawn(gone, why)
 
-    def predicted(self, tracks: Mapping[str, Track], lead_s: float) -> dict[str, Track]:
-        """The tracks ``lead_s`` seconds ahead, along the plans being flown (the plan's state then, moved by the
-        deviation measured now, as model predictive control does with a known delay); straight on where an
-        aircraft flies none."""
+    def predicted(self, tracks: Mapping[str, Track], at: float) -> dict[str, Track]:
+        """The tracks at time ``at``, along the plans being flown (the plan's state then, moved by the deviation
+        measured at the track's time, as model predictive control does with a known delay); straight on where an
+        aircraft flies none. A track already stamped ``at`` is kept as it is."""
         out = {}
         for cs, tr in tracks.items():
             ref = self.flying.get(cs)
-            t1 = tr.stamp + lead_s
-            if ref is None or not ref.start <= tr.stamp or t1 > ref.end:
-                out[cs] = Track(cs, t1, tr.at(t1), tr.speed, tr.wake)
-                continue
-            now, then = ref.sample(tr.stamp), ref.sample(t1)
-            state = then[:5].copy()
-            state[:3] += tr.state[:3] - now[:3]
-            state[3:5] += tr.state[3:5] - now[3:5]
-            out[cs] = Track(cs, t1, state, tr.speed, tr.wake)
+            if at == tr.stamp:
+                out[cs] = tr
+            elif ref is None or not ref.start <= tr.stamp or at > ref.end:
+                out[cs] = Track(cs, at, tr.at(at), tr.speed, tr.wake)
+            else:
+                now, then = ref.sample(tr.stamp), ref.sample(at)
+                state = then[:5].copy()
+                state[:3] += tr.state[:3] - now[:3]
+                state[3:5] += tr.state[3:5] - now[3:5]
+                out[cs] = Track(cs, at, state, tr.speed, tr.wake)
         return out

@@ -115,8 +115,9 @@ class PlanningService:
     def request(self, reason: str, now: float, *, tracks: Mapping[str, Track] | None = None, lead: bool = True,
                 what_if: bool = False) -> PlanRequest | str:
         """The plan to make now for ``reason``, or why there is none (one line; the caller then reports
-        :meth:`refused`). From the radar's filtered tracks (or ``tracks``), predicted :data:`LEAD_PER_LATENCY` latest
-        planning times ahead along the plans being flown when ``lead``; a what-if request is answered, never handed
+        :meth:`refused`). From the radar's filtered tracks, predicted along the plans being flown to when the plan is
+        expected to reach the aircraft: now, plus :data:`LEAD_PER_LATENCY` latest planning times with ``lead`` (the
+        policy's replans); or from ``tracks`` as they are stamped. A what-if request is answered, never handed
         out."""
         with self._lock:
             given = tracks is not None
@@ -124,10 +125,12 @@ class PlanningService:
             minimum = 1 if given else self.rules.min_aircraft
             if len(current) < minimum:
                 return f"{len(current)} aircraft tracked (min_aircraft {self.rules.min_aircraft}): nothing to plan"
-            lead_s = LEAD_PER_LATENCY * self.latency_s if lead and not what_if else 0.0
-            if lead_s > 0:
-                current = self.book.predicted(current, lead_s)
-            plan_start = max(t.stamp for t in current.values())
+            if given:  # explicit states (a what-if, the closed loop's truth at its start): as they are stamped
+                plan_start = max(t.stamp for t in current.values())
+            else:  # the radar's: predicted to when the plan is expected to reach the aircraft
+                lead_s = LEAD_PER_LATENCY * self.latency_s if lead else 0.0
+                plan_start = max(now, *(t.stamp for t in current.values())) + lead_s
+                current = self.book.predicted(current, plan_start)
             if self.epoch is None:
                 self.epoch = plan_start
             inputs = build_plan_scenario(self.base_scenario(), current, plan_start,
