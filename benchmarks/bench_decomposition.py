@@ -14,12 +14,12 @@ Scenarios: the thesis, ``scenarios/five_aircraft.yaml`` and scenario 0 of ``mal-
 from __future__ import annotations
 
 import argparse
-import json
 import logging
 import time
 from dataclasses import replace
 from pathlib import Path
 
+from mal_planner import jsonio
 from mal_planner.campaign.traffic import TrafficSpec, generate_one
 from mal_planner.landing import LandingOptions
 from mal_planner.options import PlanOptions
@@ -66,7 +66,7 @@ def main() -> None:
                   f"objective={row['objective']}", flush=True)
             rows.append(row)
     args.out.mkdir(parents=True, exist_ok=True)
-    (args.out / "decomposition.json").write_text(json.dumps(rows, indent=1), encoding="utf-8")
+    jsonio.write(args.out / "decomposition.json", rows, indent=1)
     lines = ["# Sequential decomposition against the joint NLP", "",
              "`python benchmarks/bench_decomposition.py` (one run each, in process, 2-core development machine). "
              "Objective: lower is better; loss = sequential - joint (relative to |joint|).", "",

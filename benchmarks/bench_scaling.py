@@ -67,6 +67,7 @@ from dataclasses import asdict, dataclass
 from pathlib import Path
 from typing import Any
 
+from mal_planner import jsonio
 from mal_planner.errors import OUTCOMES
 
 REPO = Path(__file__).resolve().parents[1]
@@ -347,10 +348,8 @@ def child_replan(scenario_path: str, time_limit: float, step: float, count: int)
             "nlp_build_s": landing.build_time if landing else None, "fallbacks": warnings[:5],
             "failure": None if result.failure is None else ": ".join(result.failure),
         })
-        if result.verified:
+        if result.verified:  # after a failed replan the planner starts over by itself, as in the node
             followed = result
-        elif result.failure is not None:  # the node drops the warm-start state after a failed plan
-            planner = Planner(options)
     return out
 
 
@@ -374,7 +373,7 @@ def child_main(argv: list[str]) -> int:
         result = child_nlp_size(a.scenario)
     else:
         result = child_replan(a.scenario, a.time_limit, a.replan_dt, a.replans)
-    a.child_json.write_text(json.dumps(result, indent=1, default=str), encoding="utf-8")
+    jsonio.write(a.child_json, result, indent=1, default=str)
     return 0
 
 
@@ -823,8 +822,7 @@ def main(argv: list[str] | None = None) -> int:
     thesis = size_summary(rows, "thesis") if args.thesis else None
     summary = {"sizes": {str(n): s for n, s in sizes_summary}, "thesis": thesis,
                "fit": None if fit is None else {"exponent": fit[0], "coefficient_s": fit[1], "sizes": fit_sizes}}
-    (out / "results.json").write_text(json.dumps({"meta": meta, "summary": summary, "rows": rows}, indent=1,
-                                                 default=str), encoding="utf-8")
+    jsonio.write(out / "results.json", {"meta": meta, "summary": summary, "rows": rows}, indent=1, default=str)
     write_markdown(out / "results.md", meta, rows, args.sizes, fit, fit_sizes)
     try:
         write_plot(out / "scaling.png", sizes_summary, fit, thesis)

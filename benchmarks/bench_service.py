@@ -66,6 +66,8 @@ import time
 from pathlib import Path
 from typing import Any
 
+from mal_planner import jsonio
+
 REPO = Path(__file__).resolve().parents[1]
 BIN = Path(sys.executable).parent
 SRC = REPO / "src"
@@ -861,7 +863,7 @@ def main(argv: list[str] | None = None) -> int:
                 row |= intake(logs / "watch.log", logs / "radar.log")
         if res.get("soak"):
             res["soak"] |= soak_growth(res["soak"])
-        (args.out / "results.json").write_text(json.dumps(res, indent=1, default=str) + "\n", encoding="utf-8")
+        jsonio.write(args.out / "results.json", res, indent=1, default=str)
         write_markdown(res, args.out / "results.md")
         write_figure(res, args.out / "service.png")
         return 0
@@ -936,7 +938,7 @@ def main(argv: list[str] | None = None) -> int:
                 f"{s.get('tracebacks')} tracebacks")
         res["load"]["end"] = os.getloadavg()
     res["wall_min"] = (time.monotonic() - T_START) / 60
-    (args.out / "results.json").write_text(json.dumps(res, indent=1, default=str) + "\n", encoding="utf-8")
+    jsonio.write(args.out / "results.json", res, indent=1, default=str)
     write_markdown(res, args.out / "results.md")
     write_figure(res, args.out / "service.png")
     log(f"wrote {args.out / 'results.md'}, results.json, service.png")

@@ -26,7 +26,6 @@ from __future__ import annotations
 
 import argparse
 import itertools
-import json
 import math
 import sys
 import time
@@ -37,6 +36,7 @@ T_PROCESS = time.perf_counter()
 import casadi as ca  # noqa: E402
 import numpy as np  # noqa: E402
 
+from mal_planner import jsonio  # noqa: E402
 from mal_planner.dynamics import bank_limit_residuals  # noqa: E402
 from mal_planner.initializer import plan_initial  # noqa: E402
 from mal_planner.landing.base import LandingOptions  # noqa: E402
@@ -201,7 +201,7 @@ def main(argv: list[str] | None = None) -> int:
     p.add_argument("--json", type=Path, default=None, help="write the result here (default: stdout)")
     args = p.parse_args(argv)
     result = solve_naive(args.scenario, args.intervals, args.seed)
-    text = json.dumps(result, indent=1)
+    text = jsonio.dumps(result, indent=1)
     if args.json:
         args.json.write_text(text, encoding="utf-8")
     else:
