@@ -220,7 +220,8 @@ def test_node_renders_in_one_background_process(thesis_result, tmp_path: Path) -
 
 
 def test_node_parameter_figures_accepts_choices_and_former_booleans() -> None:
-    default, check, _ = PARAMETERS["figures"]
+    option = PARAMETERS["figures"]
+    check, default = option.check_ros, option.ros_default()
     assert check(default) == "png" and check(True) == "png" and check(False) == "none" and check("All") == "all"
-    with pytest.raises(ValueError, match="none, png, html or all"):
+    with pytest.raises(ValueError, match="none, png, html, all"):
         check("yes")

@@ -21,7 +21,7 @@ from mal_planner.closedloop.loop import ClosedLoopOptions, run_closed_loop
 from mal_planner.closedloop.metrics import ClosedLoopMetrics, measure
 from mal_planner.closedloop.simulator import LOAD_FACTOR_LAG_S, SimOptions
 from mal_planner.options import SERVICE_TIME_LIMIT_S, add_arguments, build_plan_options, check_values, values_from_args
-from mal_planner.scenario import ScenarioError, load_scenario
+from mal_planner.scenario import Scenario, ScenarioError, load_scenario
 from mal_planner.units import kt_to_nm_per_s, nm_per_s_to_kt
 
 PLAN_FLAGS = ("initializer", "seed", "strategy", "mesh_tol", "time_limit_s", "wake_table", "sequencing")
@@ -120,6 +120,23 @@ def summary_lines(m: ClosedLoopMetrics, planner_side: bool = True) -> list[str]:
     return lines
 
 
+def _wind(args: argparse.Namespace, scenario: Scenario) -> WindSpec | str:
+    """The wind flown (the scenario's mean, or the flags'), or why it cannot be flown (one line)."""
+    if args.wind_kt is None:
+        if args.gust_kt >= nm_per_s_to_kt(min(a.speed for a in scenario.aircraft)):
+            return "--gust-kt: not below the airspeed"
+        wind = WindSpec(tuple(scenario.wind), kt_to_nm_per_s(args.gust_kt), args.gust_tau_s)  # type: ignore[arg-type]
+    else:
+        wind = WindSpec.from_knots(args.wind_kt, math.radians(args.wind_from_heading_deg), args.gust_kt,
+                                   args.gust_tau_s)
+    slowest = min(a.speed * math.cos(a.state0[3]) for a in scenario.aircraft)
+    if wind.speed + 3.0 * wind.gust_sigma >= slowest:
+        return (f"--wind-kt/--gust-kt: {nm_per_s_to_kt(wind.speed):.0f} kt plus 3 x "
+                f"{nm_per_s_to_kt(wind.gust_sigma):.0f} kt of gusts is not below the slowest airspeed "
+                f"{nm_per_s_to_kt(slowest):.0f} kt")
+    return wind
+
+
 def main(argv: list[str] | None = None) -> int:
     args = build_parser().parse_args(argv)
     values = values_from_args(args, PLAN_FLAGS)
@@ -135,20 +152,9 @@ def main(argv: list[str] | None = None) -> int:
     except ScenarioError as exc:
         print(f"mal-closed-loop: {exc}", file=sys.stderr)
         return 2
-    if args.wind_kt is None:
-        mean = scenario.wind
-        if args.gust_kt >= nm_per_s_to_kt(min(a.speed for a in scenario.aircraft)):
-            print("mal-closed-loop: --gust-kt: not below the airspeed", file=sys.stderr)
-            return 2
-        wind = WindSpec(tuple(mean), kt_to_nm_per_s(args.gust_kt), args.gust_tau_s)  # type: ignore[arg-type]
-    else:
-        wind = WindSpec.from_knots(args.wind_kt, math.radians(args.wind_from_heading_deg), args.gust_kt,
-                                   args.gust_tau_s)
-    slowest = min(a.speed * math.cos(a.state0[3]) for a in scenario.aircraft)
-    if wind.speed + 3.0 * wind.gust_sigma >= slowest:
-        print(f"mal-closed-loop: --wind-kt/--gust-kt: {nm_per_s_to_kt(wind.speed):.0f} kt plus 3 x "
-              f"{nm_per_s_to_kt(wind.gust_sigma):.0f} kt of gusts is not below the slowest airspeed "
-              f"{nm_per_s_to_kt(slowest):.0f} kt", file=sys.stderr)
+    wind = _wind(args, scenario)
+    if isinstance(wind, str):
+        print(f"mal-closed-loop: {wind}", file=sys.stderr)
         return 2
     try:
         simulator = make_simulator(args.simulator)

@@ -88,6 +88,34 @@ def measure(run: ClosedLoopRun) -> ClosedLoopMetrics:
     return measure_flight(run.scenario, run.sim, run.replans, run.first, run.wall_s)
 
 
+def _infringements(sc: Scenario, sim: FlightSimulator, flown: dict[str, tuple[np.ndarray, np.ndarray]]
+                   ) -> list[str]:
+    """Airspace and obstacle infringements of the flown paths (the touchdown is judged by the touchdown window)."""
+    found: list[str] = []
+    landed_here = {ac.callsign for ac in sim.aircraft if ac.status == LANDED}
+    step_s = float(getattr(sim, "step_s", 0.0))
+    for cs, (t, x) in flown.items():
+        if cs in landed_here:  # the runway lies on the airspace's boundary: the touchdown, and the step that reaches
+            keep = t < t[-1] - step_s  # it (within a chord error of the threshold), are judged by the touchdown window
+            t, x = t[keep], x[keep]
+        if len(t) >= 2:
+            found += flown_path_infringements(sc, sc.aircraft_by_callsign(cs), t, x)
+    return found
+
+
+def _order_changes(first: Replan | None, replans: list[Replan]) -> int:
+    """How often a verified replan changed the landing order of the aircraft it shared with the plan before."""
+    changes, previous = 0, first.landing_order if first else []
+    for r in replans:
+        if not r.ok:
+            continue
+        common = [cs for cs in r.landing_order if cs in previous]
+        if common != [cs for cs in previous if cs in r.landing_order]:
+            changes += 1
+        previous = r.landing_order
+    return changes
+
+
 def measure_flight(sc: Scenario, sim: FlightSimulator, replans: list[Replan] | None = None,
                    first: Replan | None = None, wall_s: float = math.nan,
                    first_plan_s: float | None = None) -> ClosedLoopMetrics:
@@ -103,18 +131,9 @@ def measure_flight(sc: Scenario, sim: FlightSimulator, replans: list[Replan] | N
     pair_failures: list[str] = []
     pairs = separation_checks(flown, sc, lambda _cs, text: pair_failures.append(text))
     failures += [f"loss of separation: {text}" for text in pair_failures]
-    infringements = 0
-    landed_here = {ac.callsign for ac in sim.aircraft if ac.status == LANDED}
-    step_s = float(getattr(sim, "step_s", 0.0))
-    for cs, (t, x) in flown.items():
-        if cs in landed_here:  # the runway lies on the airspace's boundary: the touchdown, and the step that reaches
-            keep = t < t[-1] - step_s  # it (within a chord error of the threshold), are judged by the touchdown window
-            t, x = t[keep], x[keep]
-        if len(t) < 2:
-            continue
-        found = flown_path_infringements(sc, sc.aircraft_by_callsign(cs), t, x)
-        infringements += len(found)
-        failures += found
+    found = _infringements(sc, sim, flown)
+    infringements = len(found)
+    failures += found
     closest = min(pairs, key=lambda p: p.min_distance_nm, default=None)
     radius = sc.separation_nm
     landed = {ac.callsign: float(ac.end_time) for ac in sim.aircraft if ac.status == LANDED and ac.end_time}
@@ -128,14 +147,7 @@ def measure_flight(sc: Scenario, sim: FlightSimulator, replans: list[Replan] | N
     reasons: dict[str, int] = {}
     for r in replans:
         reasons[_reason_key(r.reason)] = reasons.get(_reason_key(r.reason), 0) + 1
-    changes, previous = 0, first.landing_order if first else []
-    for r in replans:
-        if not r.ok:
-            continue
-        common = [cs for cs in r.landing_order if cs in previous]
-        if common != [cs for cs in previous if cs in r.landing_order]:
-            changes += 1
-        previous = r.landing_order
+    changes = _order_changes(first, replans)
     ratio = math.inf
     if closest is not None:
         ratio = closest.min_distance_nm / radius

@@ -67,13 +67,8 @@ def _markers(view: PlanView, samples: dict, colors: dict[str, str], t: float) ->
     return traces
 
 
-def figure(view: PlanView) -> dict:
-    """The interactive figure as a plotly figure dict (see the module docstring).
-
-    Plain dicts, not plotly's validated objects: building hundreds of frames that way takes seconds.
-    """
-    colors = style.color_map(view.callsigns)
-    samples = _sample(view, PATH_DT)
+def _scene_traces(view: PlanView, samples: dict, colors: dict[str, str]) -> list[dict]:
+    """The traces that do not move: obstacles, gate holes, the runway threshold and each aircraft's path."""
     data: list[dict] = []
     for k, ob in enumerate(view.obstacles):
         verts, tris = obstacle_mesh(ob, n=28)
@@ -95,6 +90,17 @@ def figure(view: PlanView) -> dict:
         data.append(dict(type="scatter3d", x=pos[:, 0], y=pos[:, 1], z=pos[:, 2], mode="lines", name=a.callsign,
                                    line={"color": colors[a.callsign], "width": 5}, customdata=_hover(t, pos, bank),
                                    hovertemplate=HOVER, legendgroup=a.callsign))
+    return data
+
+
+def figure(view: PlanView) -> dict:
+    """The interactive figure as a plotly figure dict (see the module docstring).
+
+    Plain dicts, not plotly's validated objects: building hundreds of frames that way takes seconds.
+    """
+    colors = style.color_map(view.callsigns)
+    samples = _sample(view, PATH_DT)
+    data = _scene_traces(view, samples, colors)
     t_end = max(float(s[0][-1]) for s in samples.values())
     t_start = min(float(s[0][0]) for s in samples.values())
     step = max(1.0, math.ceil((t_end - t_start) / MAX_FRAMES))

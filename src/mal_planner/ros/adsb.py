@@ -29,7 +29,7 @@ from mal_planner.geo.adsb import (
     write_scenario,
     write_tracks_csv,
 )
-from mal_planner.geo.runways import UnknownRunwayError, runway
+from mal_planner.geo.runways import Runway, UnknownRunwayError, runway
 from mal_planner.profiles import TMA
 from mal_planner.ros.bagio import STATE_TYPE, MsgTypes, serialize, write_bag
 from mal_planner.ros.convert import planner_to_aircraft_state
@@ -93,38 +93,11 @@ def main(argv: list[str] | None = None) -> int:
     log.addHandler(handler)
     log.setLevel(logging.INFO)
     log.propagate = False
-    prog = p.prog
     try:
-        moment = utc_seconds(args.time)
-        rw = runway(args.airport, args.runway)
-        if not (args.area_nm > 0 and args.ceiling_nm > 0 and args.bag_seconds >= 0 and args.bag_rate > 0):
-            raise ValueError("--area-nm, --ceiling-nm and --bag-rate must be > 0, --bag-seconds >= 0")
-        for out in (args.out, args.bag, args.tracks):
-            if out is not None and out.exists() and not args.force:
-                raise ValueError(f"{out} exists already (--force replaces it)")
-    except (ValueError, UnknownRunwayError) as exc:
-        print(f"{prog}: error: {exc}", file=sys.stderr)
-        return 2
-    try:
-        tracks = load_tracks(args.data)
-        if not tracks or not tracks[0].t.size:
-            raise ValueError("the recording holds no flight")
-        t_min, t_max = min(t.t[0] for t in tracks), max(t.t[-1] for t in tracks)
-        if not t_min <= moment <= t_max:
-            raise ValueError(f"--time {utc_text(moment)} is outside the recording ({utc_text(t_min)} to "
-                             f"{utc_text(t_max)})")
-        sel = select_arrivals(tracks, rw, moment, Area.square(args.area_nm, args.ceiling_nm), TMA, args.arrivals,
-                              args.altitude_offset_ft, args.vertical_ft)
-        name = args.name or args.out.stem
-        data = scenario_data(sel, name, TMA, vertical_ft=args.vertical_ft)
-        command = "mal-adsb " + " ".join(argv if argv is not None else sys.argv[1:])
-        source = str(args.data) if args.data else "traffic.data.samples.quickstart"
-        for out in (args.out, args.bag, args.tracks):
-            if out is not None and args.force and out.is_file():
-                out.unlink()
-        write_scenario(sel, args.out, data, header_lines(sel, source, command))
-    except (OSError, ValueError, RuntimeError) as exc:
-        print(f"{prog}: error: {exc}", file=sys.stderr)
+        moment, rw = _checked(args)
+        sel = _convert(args, moment, rw, "mal-adsb " + " ".join(argv if argv is not None else sys.argv[1:]))
+    except (OSError, ValueError, RuntimeError, UnknownRunwayError) as exc:
+        print(f"{p.prog}: error: {exc}", file=sys.stderr)
         return 2
     print(f"wrote {args.out}: {len(sel.kept)} arrivals ({', '.join(a.callsign for a in sel.kept)}), "
           f"{len(sel.skipped)} left out; altitude offset {sel.altitude_offset_ft:+.0f} ft")
@@ -136,6 +109,37 @@ def main(argv: list[str] | None = None) -> int:
         print(f"wrote {args.tracks}")
     return 0
 
+
+def _checked(args: argparse.Namespace) -> tuple[float, Runway]:
+    """The moment and the runway; ValueError (one line) for a bad option or an output that exists."""
+    moment = utc_seconds(args.time)
+    rw = runway(args.airport, args.runway)
+    if not (args.area_nm > 0 and args.ceiling_nm > 0 and args.bag_seconds >= 0 and args.bag_rate > 0):
+        raise ValueError("--area-nm, --ceiling-nm and --bag-rate must be > 0, --bag-seconds >= 0")
+    for out in (args.out, args.bag, args.tracks):
+        if out is not None and out.exists() and not args.force:
+            raise ValueError(f"{out} exists already (--force replaces it)")
+    return moment, rw
+
+
+def _convert(args: argparse.Namespace, moment: float, rw: Runway, command: str) -> Selection:
+    """Read the recording, select the moment's arrivals and write the scenario (validated first)."""
+    tracks = load_tracks(args.data)
+    if not tracks or not tracks[0].t.size:
+        raise ValueError("the recording holds no flight")
+    t_min, t_max = min(t.t[0] for t in tracks), max(t.t[-1] for t in tracks)
+    if not t_min <= moment <= t_max:
+        raise ValueError(f"--time {utc_text(moment)} is outside the recording ({utc_text(t_min)} to "
+                         f"{utc_text(t_max)})")
+    sel = select_arrivals(tracks, rw, moment, Area.square(args.area_nm, args.ceiling_nm), TMA, args.arrivals,
+                          args.altitude_offset_ft, args.vertical_ft)
+    data = scenario_data(sel, args.name or args.out.stem, TMA, vertical_ft=args.vertical_ft)
+    source = str(args.data) if args.data else "traffic.data.samples.quickstart"
+    for out in (args.out, args.bag, args.tracks):
+        if out is not None and args.force and out.is_file():
+            out.unlink()
+    write_scenario(sel, args.out, data, header_lines(sel, source, command))
+    return sel
 
 if __name__ == "__main__":
     sys.exit(main())
