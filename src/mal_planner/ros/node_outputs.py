@@ -21,9 +21,13 @@ class NodeOutputs:
     """Writes into ``out_dir`` (None: nothing)."""
 
     def __init__(self, out_dir: str | Path | None, figures: str) -> None:
+        self._renderer: subprocess.Popen | None = None
+        self.set_folder(out_dir, figures)
+
+    def set_folder(self, out_dir: str | Path | None, figures: str) -> None:
+        """Write into ``out_dir`` from now on (a parameter set at run time); the figure renderer carries on."""
         self.out_dir = Path(out_dir) if out_dir else None
         self.figures = figures
-        self._renderer: subprocess.Popen | None = None
 
     def write_status(self, counts: dict[str, Any], plan_start: float | None, result: PlanResult | None,
                      flying: set[str]) -> None:

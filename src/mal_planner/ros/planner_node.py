@@ -119,7 +119,8 @@ class PlannerNode:
         self.params = new
         self.service.set_rules(new.rules(self.scenario))
         self.service.set_options(new.plan_options())
-        self.outputs = NodeOutputs(new.output_dir, new.figures)
+        self.outputs.set_folder(new.output_dir, new.figures)
+        self.publisher.frame_id = new.frame_id
         log.info("parameters updated: %s", describe(changes))
         return True, ""
 
@@ -198,8 +199,10 @@ class PlannerNode:
             self._write_status()
             try:
                 outcome = self._plan(job)
-            except Exception as exc:  # never let the plan thread die
+            except Exception as exc:  # never let the plan thread die, nor the service wait for this plan
                 log.exception("planning failed")
+                if not job.what_if:
+                    self.service.refused(self._now())
                 outcome = PlanOutcome(False, f"planning failed: {exc}", failure=Outcome.CRASH)
             self._attempts += 1
             self._last_error = "" if outcome.success else outcome.message

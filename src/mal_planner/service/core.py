@@ -131,10 +131,10 @@ class PlanningService:
                 lead_s = LEAD_PER_LATENCY * self.latency_s if lead else 0.0
                 plan_start = max(now, *(t.stamp for t in current.values())) + lead_s
                 current = self.book.predicted(current, plan_start)
-            if self.epoch is None:
+            if self.epoch is None and not what_if:
                 self.epoch = plan_start
-            inputs = build_plan_scenario(self.base_scenario(), current, plan_start,
-                                         max(0.0, plan_start - self.epoch))
+            shift = 0.0 if self.epoch is None else max(0.0, plan_start - self.epoch)
+            inputs = build_plan_scenario(self.base_scenario(), current, plan_start, shift)
             for cs, why in inputs.left_out.items():
                 log.warning("aircraft %s left out of the plan: %s", cs, why)
             options = self.options
@@ -148,10 +148,11 @@ class PlanningService:
             return req
 
     def refused(self, now: float, latency_s: float | None = None) -> None:
-        """A radar request was refused (:meth:`request` said why) at ``now``, ``latency_s`` after it was asked: the
-        policy backs off as after a failed plan, but the plans flown are not marked as kept."""
+        """A radar request was refused (:meth:`request` said why), or its planning broke down, at ``now``,
+        ``latency_s`` after it was asked: the policy backs off as after a failed plan, but the plans flown are not
+        marked as kept."""
         with self._lock:
-            self.asked, self.planned = False, True
+            self.asked, self.planned, self.in_flight = False, True, None
             self.book.last_arrival = now
             if latency_s is not None:
                 self.latency_s = latency_s
