@@ -34,7 +34,7 @@ at a time.
    report.md written after each plan, no figures): the planner's RSS every 5 s (psutil, else /proc/PID/status
    VmRSS), growth after the first 5 minutes (the first third of a soak under 10 minutes), plan and failure
    counts, and any traceback/exception in its log.
-4. Recorder kill: ``mal-record`` (default ``--split-s 1``) records one aircraft on ``radar/tracks`` at 20 Hz
+4. Recorder kill: ``mal-record`` (one storage file flushed every ``--flush-s``, 1 s) records one aircraft on ``radar/tracks`` at 20 Hz
    for 30 s, then SIGKILL (the radar goes on); the bag read back with rosbags (``mal_planner.ros.bagio``):
    seconds between the last message kept and the kill, and gaps.
 
