@@ -34,9 +34,9 @@ at a time.
    report.md written after each plan, no figures): the planner's RSS every 5 s (psutil, else /proc/PID/status
    VmRSS), growth after the first 5 minutes (the first third of a soak under 10 minutes), plan and failure
    counts, and any traceback/exception in its log.
-4. Recorder kill: ``mal-record`` (one storage file flushed every ``--flush-s``, 1 s) records one aircraft on ``radar/tracks`` at 20 Hz
-   for 30 s, then SIGKILL (the radar goes on); the bag read back with rosbags (``mal_planner.ros.bagio``):
-   seconds between the last message kept and the kill, and gaps.
+4. Recorder kill: ``mal-record`` (one storage file flushed every ``--flush-s``, 1 s) records one aircraft on
+   ``radar/tracks`` at 20 Hz for 30 s, then SIGKILL (the radar goes on); the bag read back with rosbags
+   (``mal_planner.ros.bagio``): seconds between the last message kept and the kill, and gaps.
 
 Outputs in ``--out`` (default ``benchmarks/service``): ``results.md``, ``results.json``, ``service.png`` and
 ``logs/`` (every child's output, planner logs included); ``--replot`` rewrites results.md and service.png from
