@@ -13,7 +13,7 @@ import pytest
 import yaml
 from pymap3d.vincenty import vdist
 
-from mal_planner.geo import adsb
+from mal_planner.geo import adsb, adsb_tracks
 from mal_planner.geo.runways import UnknownRunwayError, runway, runways
 from mal_planner.ros.bagio import STATE_TYPE, open_reader
 from mal_planner.ros.convert import aircraft_state_to_planner
@@ -24,7 +24,7 @@ from mal_planner.units import ft_to_nm, kt_to_nm_per_s
 
 SCENARIO = "scenarios/cdg_1443.yaml"
 BAG = "data/cdg_1443_radar.mcap"
-MOMENT = adsb.utc_seconds("2021-10-07T14:43Z")
+MOMENT = adsb_tracks.utc_seconds("2021-10-07T14:43Z")
 PRESSURE_OFFSET_FT = 489.0
 
 
@@ -47,7 +47,7 @@ def test_runway_table_matches_apt_dat():
 
 
 def _approach(name: str, rw_name: str, y0_nm: float, speed_kt: float, t0: float, height_ft: float | None = None,
-              x_nm: float = 0.0) -> adsb.Track:
+              x_nm: float = 0.0) -> adsb_tracks.Track:
     """A synthetic track flying straight along -y of ``rw_name``'s frame at 1 Hz: on a 3-deg glide path to 50 ft
     over the threshold (or level at ``height_ft``), to 1 nm past it, its altitudes recorded barometric (the day's
     pressure offset taken off)."""
@@ -56,13 +56,13 @@ def _approach(name: str, rw_name: str, y0_nm: float, speed_kt: float, t0: float,
     t = np.arange(0.0, (y0_nm + 1.0) / v, 1.0)
     y = y0_nm - v * t
     if height_ft is None:
-        z = np.maximum(y, 0.0) * math.tan(math.radians(3.0)) + ft_to_nm(adsb.THRESHOLD_CROSSING_HEIGHT_FT)
+        z = np.maximum(y, 0.0) * math.tan(math.radians(3.0)) + ft_to_nm(adsb_tracks.THRESHOLD_CROSSING_HEIGHT_FT)
     else:
         z = np.full_like(y, ft_to_nm(height_ft))
     lat, lon, alt = frame.to_geodetic(np.stack([np.full_like(y, x_nm), y, z], axis=-1))
     track = np.array([frame.direction_to_geodetic(p, -math.pi / 2, 0.0)[0]
                       for p in np.stack([np.full_like(y, x_nm), y, z], axis=-1)])
-    return adsb.Track(name, name, t0 + t, lat, lon, alt - PRESSURE_OFFSET_FT, np.full_like(t, speed_kt), track)
+    return adsb_tracks.Track(name, name, t0 + t, lat, lon, alt - PRESSURE_OFFSET_FT, np.full_like(t, speed_kt), track)
 
 
 def test_converter_on_synthetic_tracks():
@@ -73,7 +73,7 @@ def test_converter_on_synthetic_tracks():
     high = _approach("HIGH", "08R", 40.0, 250.0, t0 - 60.0, height_ft=30000.0)  # overflight, aligned: no landing
     far = _approach("FAR", "08R", 120.0, 250.0, t0)             # lands much later, outside the area at the moment
     tracks = [first, second, close, high, far]
-    landings = {tr.callsign: adsb.detect_landing(tr, runways("LFPG").values()) for tr in tracks}
+    landings = {tr.callsign: adsb_tracks.detect_landing(tr, runways("LFPG").values()) for tr in tracks}
     assert landings["HIGH"] is None
     assert {c: lnd.runway.name for c, lnd in landings.items() if lnd} == {
         "FIRST": "08R", "SECOND": "09R", "CLOSE": "08R", "FAR": "08R"}
@@ -82,7 +82,7 @@ def test_converter_on_synthetic_tracks():
     for tr in tracks:
         tr.landing = landings[tr.callsign]
     # to the Earth's curvature: the straight glide path rises 14 ft above the line fitted in altitude at 4 nm
-    assert adsb.altimeter_offset_ft(tracks) == pytest.approx(PRESSURE_OFFSET_FT, abs=5.0)
+    assert adsb_tracks.altimeter_offset_ft(tracks) == pytest.approx(PRESSURE_OFFSET_FT, abs=5.0)
 
     rw = runway("LFPG", "08R")
     only_runway = adsb.select_arrivals(tracks, rw, MOMENT, adsb.Area.square(25.0, 1.2))
@@ -160,15 +160,15 @@ def sample_flights():
     from traffic.data.samples import quickstart
 
     df = quickstart.data
-    return adsb.tracks_from_frame(df[df["callsign"].isin(["AFR4145", "AFR71ZP", "AFR429", "AFL2461"])])
+    return adsb_tracks.tracks_from_frame(df[df["callsign"].isin(["AFR4145", "AFR71ZP", "AFR429", "AFL2461"])])
 
 
 def test_converter_on_sample_flights(sample_flights):
     by = {tr.callsign: tr for tr in sample_flights}
     table = runways("LFPG").values()
-    lands = {c: adsb.detect_landing(tr, table) for c, tr in by.items()}
+    lands = {c: adsb_tracks.detect_landing(tr, table) for c, tr in by.items()}
     assert lands["AFL2461"] is None  # a departure
-    assert {c: (lnd.runway.name, adsb.utc_text(lnd.time_s)[11:16]) for c, lnd in lands.items() if lnd} == {
+    assert {c: (lnd.runway.name, adsb_tracks.utc_text(lnd.time_s)[11:16]) for c, lnd in lands.items() if lnd} == {
         "AFR4145": ("08R", "14:49"), "AFR71ZP": ("08R", "14:49"), "AFR429": ("09R", "14:54")}
     sc = load_scenario(SCENARIO)
     # the bundled file's offset (its header: calibrated on all the recording's landings, not on these three)

@@ -19,16 +19,14 @@ from mal_planner.geo.adsb import (
     Area,
     Selection,
     header_lines,
-    load_tracks,
     local_state,
     log,
     scenario_data,
     select_arrivals,
-    utc_seconds,
-    utc_text,
     write_scenario,
     write_tracks_csv,
 )
+from mal_planner.geo.adsb_tracks import load_tracks, utc_seconds, utc_text
 from mal_planner.geo.runways import Runway, UnknownRunwayError, runway
 from mal_planner.profiles import TMA
 from mal_planner.ros.bagio import STATE_TYPE, MsgTypes, serialize, write_bag

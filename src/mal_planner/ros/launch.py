@@ -35,7 +35,6 @@ from __future__ import annotations
 
 import argparse
 import ctypes
-import json
 import os
 import signal
 import subprocess
@@ -46,10 +45,10 @@ from collections.abc import Sequence
 from pathlib import Path
 from typing import Any, TextIO
 
+from mal_planner.ros.node_outputs import STATUS_FILE, read_status, summary_table, write_closed_loop_params
 from mal_planner.ros.transport.loopback import write_loopback_config
 
 REPO = Path(__file__).resolve().parents[3]
-STATUS_FILE = "planner_status.json"
 READY = {"recorder": "record: recording", "planner": "planner ready"}
 STOP_TIMEOUT_S = 15.0
 RESPAWNABLE = ("planner",)
@@ -189,44 +188,6 @@ def child_env(out: Path) -> dict[str, str]:
     return env
 
 
-def read_status(out: Path) -> dict[str, Any] | None:
-    try:
-        return json.loads((out / STATUS_FILE).read_text(encoding="utf-8"))
-    except (OSError, ValueError):
-        return None
-
-
-def summary_table(status: dict[str, Any]) -> str:
-    rows = [f"{'order':>5}  {'callsign':<8} {'landing (s)':>11}  verified"]
-    for ac in status.get("aircraft", []):
-        rows.append(f"{ac['order']:>5}  {ac['callsign']:<8} {ac['landing_time_s']:>11.2f}  "
-                    f"{'yes' if ac['verified'] else 'no'}")
-    return "\n".join(rows)
-
-
-def closed_loop_params(params: str, scenario: str, out: Path, noise_m: float = 0.0, radar_rate_hz: float = 1.0
-                       ) -> str:
-    """The planner's params file for a closed loop: the given one, on simulated time, planning once every aircraft
-    is tracked, with the closed loop's rules (:meth:`~mal_planner.service.rules.ServiceRules.closed_loop`: the
-    deviation threshold from the path accuracy and the radar noise, a turn time between replans) and the margins
-    of flown plans."""
-    import yaml
-
-    from mal_planner.scenario import load_scenario
-    from mal_planner.service.rules import ServiceRules
-    from mal_planner.units import m_to_nm, nm_to_m
-
-    rules = ServiceRules.closed_loop(load_scenario(scenario), noise_sigma_nm=m_to_nm(noise_m),
-                                     radar_period_s=1.0 / radar_rate_hz)
-    data = yaml.safe_load(Path(params).read_text(encoding="utf-8")) or {}
-    values = data.setdefault("planner", {}).setdefault("ros__parameters", {})
-    values.update(use_sim_time=True, settle_time_s=0.0, tracking_margins=True,
-                  deviation_threshold_m=float(nm_to_m(rules.deviation_nm)), min_replan_interval_s=rules.min_interval_s)
-    path = out / "planner.closed_loop.params.yaml"
-    path.write_text(yaml.safe_dump(data), encoding="utf-8")
-    return str(path)
-
-
 class Launcher:
     def __init__(self, args: argparse.Namespace) -> None:
         self.args = args
@@ -291,7 +252,7 @@ class Launcher:
         env = child_env(self.out)
         finite = not a.keep_running and (a.replay is not None or a.duration > 0 or a.closed_loop)
         if a.closed_loop:
-            params = closed_loop_params(params, scenario, self.out, a.noise_m, a.sim_rate / a.sim_speed)
+            params = write_closed_loop_params(params, scenario, self.out, a.noise_m, a.sim_rate / a.sim_speed)
         print(f"launch: scenario {scenario}, params {params}, out {self.out}, record {bag or 'off'}, "
               f"CYCLONEDDS_URI {env['CYCLONEDDS_URI']}, ROS_DOMAIN_ID {env.get('ROS_DOMAIN_ID', '0')}", flush=True)
         if bag is not None:

@@ -4,14 +4,19 @@
 
 from __future__ import annotations
 
+import json
 import logging
 import subprocess
 from pathlib import Path
 from typing import Any
 
+import yaml
+
 from mal_planner import jsonio
 from mal_planner.pipeline import PlanResult
+from mal_planner.ros.node_params import closed_loop_values
 from mal_planner.ros.plan_messages import aircraft_verified
+from mal_planner.scenario import load_scenario
 
 STATUS_FILE = "planner_status.json"
 log = logging.getLogger("mal_planner.ros.planner")
@@ -60,3 +65,34 @@ class NodeOutputs:
             log.error("writing outputs to %s failed: %s", self.out_dir, exc)
             return False
         return True
+
+
+def read_status(out: Path) -> dict[str, Any] | None:
+    """The node's ``planner_status.json`` in ``out`` (None: none yet, or half written)."""
+    try:
+        return json.loads((out / STATUS_FILE).read_text(encoding="utf-8"))
+    except (OSError, ValueError):
+        return None
+
+
+def summary_table(status: dict[str, Any]) -> str:
+    """The plan of a status file as a table: order, callsign, landing time, verified."""
+    rows = [f"{'order':>5}  {'callsign':<8} {'landing (s)':>11}  verified"]
+    for ac in status.get("aircraft", []):
+        rows.append(f"{ac['order']:>5}  {ac['callsign']:<8} {ac['landing_time_s']:>11.2f}  "
+                    f"{'yes' if ac['verified'] else 'no'}")
+    return "\n".join(rows)
+
+
+def write_closed_loop_params(params: str, scenario: str, out: Path, noise_m: float = 0.0,
+                             radar_rate_hz: float = 1.0) -> str:
+    """The planner's params file for a closed loop: the given one, on simulated time, planning once every aircraft
+    is tracked, with the closed loop's rules (:meth:`~mal_planner.service.rules.ServiceRules.closed_loop`: the
+    deviation threshold from the path accuracy and the radar noise, a turn time between replans) and the margins
+    of flown plans."""
+    data = yaml.safe_load(Path(params).read_text(encoding="utf-8")) or {}
+    data.setdefault("planner", {}).setdefault("ros__parameters", {}).update(
+        closed_loop_values(load_scenario(scenario), noise_m, 1.0 / radar_rate_hz))
+    path = out / "planner.closed_loop.params.yaml"
+    path.write_text(yaml.safe_dump(data), encoding="utf-8")
+    return str(path)

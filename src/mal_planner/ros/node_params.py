@@ -17,7 +17,7 @@ from mal_planner.ros.transport import load_params_file
 from mal_planner.scales import Scales
 from mal_planner.scenario import Scenario
 from mal_planner.service.rules import ServiceRules
-from mal_planner.units import m_to_nm
+from mal_planner.units import m_to_nm, nm_to_m
 
 PARAMETERS: dict[str, Option] = {**{o.ros: o for o in PLAN_OPTIONS if o.ros is not None},
                                  **{o.ros: o for o in NODE_OPTIONS if o.ros is not None}}
@@ -137,3 +137,11 @@ def declare_parameters(node: Any) -> NodeParams:
 def describe(params: Mapping[str, Any]) -> str:
     """``name=value`` list for the start-up log line."""
     return ", ".join(f"{k}={v!r}" for k, v in params.items())
+
+
+def closed_loop_values(scenario: Scenario, noise_m: float, radar_period_s: float) -> dict[str, Any]:
+    """The parameters that give the node the closed loop's rules (:meth:`ServiceRules.closed_loop`) for a radar of
+    ``noise_m`` every ``radar_period_s``: simulated time, no settling, the margins of flown plans."""
+    rules = ServiceRules.closed_loop(scenario, noise_sigma_nm=m_to_nm(noise_m), radar_period_s=radar_period_s)
+    return {"use_sim_time": True, "settle_time_s": 0.0, "tracking_margins": True,
+            "deviation_threshold_m": float(nm_to_m(rules.deviation_nm)), "min_replan_interval_s": rules.min_interval_s}
