@@ -48,6 +48,11 @@ class PlanPublisher:
         self.marker_pub = node.create_publisher("visualization_msgs/msg/MarkerArray", "planner/markers", QOS_LATCHED)
         self.diag_pub = node.create_publisher("diagnostic_msgs/msg/DiagnosticArray", "diagnostics", QOS_LATCHED)
         self._lock = threading.RLock()
+        """Plans: what each topic holds (the plan thread and the executor both change it)."""
+        self._paths_lock = threading.Lock()
+        self._diag_lock = threading.Lock()
+        """Kept apart, so that the executor's 1 Hz diagnostics and new aircraft's topics never wait for a plan's
+        messages to be built and published."""
         self._paths: dict[str, Any] = {}
         self.published: set[str] = set()
         """Aircraft whose path topic holds a plan."""
@@ -61,7 +66,7 @@ class PlanPublisher:
         self._rejected_reported = 0
 
     def path_publisher(self, callsign: str) -> Any:
-        with self._lock:
+        with self._paths_lock:
             if callsign not in self._paths:
                 self._paths[callsign] = self.node.create_publisher("nav_msgs/msg/Path", f"aircraft/{callsign}/path",
                                                                    QOS_LATCHED)
@@ -73,13 +78,13 @@ class PlanPublisher:
         diagnostics. Returns the LandingPlan and the paths in landing order."""
         result, request = event.result, event.request
         start = result.start_time
+        paths = path_messages(self.types, list(event.trajectories.values()), start, self.frame_id)
+        plan_msg = landing_plan_message(self.types, result, start, result.order, self.frame_id,
+                                        self.scenario.geo_frame, request.inputs.left_out)
+        if event.lost:
+            log.info("aircraft %s lost while planning: not published", ", ".join(event.lost))
+            plan_msg.aircraft = [a for a in plan_msg.aircraft if a.callsign not in event.lost]
         with self._lock:
-            paths = path_messages(self.types, list(event.trajectories.values()), start, self.frame_id)
-            plan_msg = landing_plan_message(self.types, result, start, result.order, self.frame_id,
-                                            self.scenario.geo_frame, request.inputs.left_out)
-            if event.lost:
-                log.info("aircraft %s lost while planning: not published", ", ".join(event.lost))
-                plan_msg.aircraft = [a for a in plan_msg.aircraft if a.callsign not in event.lost]
             self.plans += 1
             self.last_result, self.plan_msg, self._kept_first = result, plan_msg, None
             for cs, msg in paths.items():
@@ -147,7 +152,7 @@ class PlanPublisher:
         """The plan's status (kept: the 1 Hz diagnostics repeat it beside the radar status)."""
         level, values = plan_diagnostic_values(result, self.plans, failed)
         values |= extra or {}
-        with self._lock:
+        with self._diag_lock:
             self._plan_status = diagnostic_status(self.types, self.node.get_name(), level, message, values)
         self.publish_diagnostics()
 
@@ -155,7 +160,7 @@ class PlanPublisher:
         """One DiagnosticArray: the plan's status first, then the radar's (as a diagnostic_updater would); the
         radar status WARNs while messages are being rejected."""
         T = self.types
-        with self._lock:
+        with self._diag_lock:
             counts, tracked = self.radar()
             values, message = radar_diagnostic_values(counts, tracked)
             fresh = counts["rejected"] - self._rejected_reported

@@ -119,7 +119,7 @@ class PlanningService:
         expected to reach the aircraft: now, plus :data:`LEAD_PER_LATENCY` latest planning times with ``lead`` (the
         policy's replans); or from ``tracks`` as they are stamped. A what-if request is answered, never handed
         out."""
-        with self._lock:
+        with self._lock:  # a consistent picture; the scenario is built outside the lock (it takes a while)
             given = tracks is not None
             current = dict(tracks) if given else self.intake.estimates()  # type: ignore[arg-type]
             minimum = 1 if given else self.rules.min_aircraft
@@ -134,18 +134,21 @@ class PlanningService:
             if self.epoch is None and not what_if:
                 self.epoch = plan_start
             shift = 0.0 if self.epoch is None else max(0.0, plan_start - self.epoch)
-            inputs = build_plan_scenario(self.base_scenario(), current, plan_start, shift)
-            for cs, why in inputs.left_out.items():
-                log.warning("aircraft %s left out of the plan: %s", cs, why)
-            options = self.options
+            base, options = self.base_scenario(), self.options
             if self.planned or what_if:
                 options = replace(options, time_limit_s=replan_time_limit(options, self.rules))
-            req = PlanRequest(reason, now, plan_start, inputs, options, what_if, given)
-            if not inputs.scenario.aircraft:
-                return "no aircraft to plan (all left out)"
             if not what_if:
-                self.in_flight, self.asked, self.planned = req, False, True
-            return req
+                self.planned = True
+        inputs = build_plan_scenario(base, current, plan_start, shift)
+        for cs, why in inputs.left_out.items():
+            log.warning("aircraft %s left out of the plan: %s", cs, why)
+        if not inputs.scenario.aircraft:
+            return "no aircraft to plan (all left out)"
+        req = PlanRequest(reason, now, plan_start, inputs, options, what_if, given)
+        if not what_if:
+            with self._lock:
+                self.in_flight, self.asked = req, False
+        return req
 
     def refused(self, now: float, latency_s: float | None = None) -> None:
         """A radar request was refused (:meth:`request` said why), or its planning broke down, at ``now``,
