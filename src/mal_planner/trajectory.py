@@ -113,6 +113,15 @@ class Reference:
     def position(self, t: float) -> np.ndarray:
         return self.sample(t)[:3]
 
+    def positions(self, times: np.ndarray) -> np.ndarray:
+        """(n, 3) positions at ``times``, as :meth:`sample` gives them (its start before it, its final line after)."""
+        times = np.asarray(times, float)
+        out = np.column_stack([np.interp(times, self.t, self.table[:, k]) for k in range(3)])
+        past = times > self.t[-1]
+        if past.any():
+            out[past] = self.table[-1, :3] + (times[past] - self.t[-1])[:, None] * self.table[-1, 5:8]
+        return out
+
     def closest_time(self, p: np.ndarray, t: float, window_s: float) -> float:
         """The plan's time whose position is closest to ``p``, searched within ``window_s`` of ``t`` (a plan that
         loops passes near itself again only a turn later), on the plan's chords and on the final line beyond its

@@ -47,7 +47,8 @@ def closed_loop_row(scenario: Scenario, source: str, options: dict[str, Any]) ->
     run = run_closed_loop(scenario, ClosedLoopOptions(
         sim=SimOptions(wind=wind, plan_delay_s=loop["delay_s"], seed=seed),
         plan=replace(to_plan_options(options), time_limit_s=options.get("time_limit_s") or PLAN_TIME_LIMIT_S),
-        planner_knows_wind=loop["knows_wind"], radar_noise_m=loop["noise_m"]), simulator)
+        planner_knows_wind=loop["knows_wind"], radar_noise_m=loop["noise_m"],
+        extra_plan_delay_s=loop.get("extra_plan_delay_s", 0.0), fail_every=loop.get("fail_every", 0)), simulator)
     m = measure(run)
     lat = m.replan_latency_s
     row: dict[str, Any] = {
@@ -68,6 +69,8 @@ def closed_loop_row(scenario: Scenario, source: str, options: dict[str, Any]) ->
         "cl_min_landing_spacing_s": _finite(m.min_landing_spacing_s),
         "cl_replan_times_s": ";".join(f"{r.charged_s:.3f}" for r in run.replans),
         "cl_simulator": loop.get("simulator", "ours"),
+        "cl_fallback_share": m.fallback_share, "cl_holds": m.holds, "cl_net_alerts": m.net_alerts,
+        "cl_net_uses": m.net_uses, "cl_vectors": m.vectors,
         "cl_simulator_losses_of_separation": (None if m.external_losses_of_separation is None
                                               else len(m.external_losses_of_separation)),
     }

@@ -43,6 +43,10 @@ def add_plan_arguments(parser: argparse.ArgumentParser) -> None:
     loop.add_argument("--noise-m", type=float, default=30.0, help="radar noise sigma, m (default: %(default)s)")
     loop.add_argument("--delay-s", type=float, default=0.0, help="plan uptake delay, s (default: 0)")
     loop.add_argument("--unknown-wind", action="store_true", help="the planner plans in still air")
+    loop.add_argument("--extra-plan-delay-s", type=float, default=0.0,
+                      help="a slow planner: every replan reaches the aircraft this much later, s (default: 0)")
+    loop.add_argument("--fail-every", type=int, default=0, metavar="K",
+                      help="a failing planner: every K-th replan fails (2: every other one; default: 0, none)")
     loop.add_argument("--simulator", choices=("ours", "bluesky"), default="ours",
                       help="who flies the plans: our FlightSimulator or BlueSky (optional extra 'bluesky'; steady "
                            "wind only: --gust-kt must be 0) (default: %(default)s)")
@@ -52,7 +56,8 @@ def options_from_args(args: argparse.Namespace) -> dict[str, Any]:
     closed = None
     if args.closed_loop:
         closed = {"wind_kt_max": args.wind_kt_max, "gust_kt": args.gust_kt, "noise_m": args.noise_m,
-                  "delay_s": args.delay_s, "knows_wind": not args.unknown_wind, "simulator": args.simulator}
+                  "delay_s": args.delay_s, "knows_wind": not args.unknown_wind, "simulator": args.simulator,
+                  "extra_plan_delay_s": args.extra_plan_delay_s, "fail_every": args.fail_every}
     return {**to_campaign(values_from_args(args, CAMPAIGN_OPTIONS)), "closed_loop": closed}
 
 
@@ -63,7 +68,8 @@ def check_options(options: dict[str, Any]) -> str | None:
         return problem
     closed = options.get("closed_loop") or {}
     for key, flag in (("wind_kt_max", "--wind-kt-max"), ("gust_kt", "--gust-kt"), ("noise_m", "--noise-m"),
-                      ("delay_s", "--delay-s")):
+                      ("delay_s", "--delay-s"), ("extra_plan_delay_s", "--extra-plan-delay-s"),
+                      ("fail_every", "--fail-every")):
         if key in closed and not closed[key] >= 0:
             return f"{flag}: must be >= 0, got {closed[key]}"
     if closed.get("simulator", "ours") != "ours":

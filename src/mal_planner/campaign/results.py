@@ -46,6 +46,8 @@ CLOSED_LOOP_COLUMNS: tuple[str, ...] = (
     "cl_order_changes", "cl_min_landing_spacing_s",
     "cl_replan_times_s",           # every replan's planning time as charged (CPU), ';'-separated
     "cl_simulator",                # who flew: ours (FlightSimulator) or bluesky
+    "cl_fallback_share",           # share of the flight time on a hold, a vector or nothing
+    "cl_holds", "cl_net_alerts", "cl_net_uses", "cl_vectors",  # the service's holds, the safety net's alerts and uses
     "cl_simulator_losses_of_separation",  # the simulator's own count (BlueSky's conflict detection); empty: ours
 )
 SEQUENCE_COLUMNS: tuple[str, ...] = (

@@ -79,6 +79,10 @@ def build_parser() -> argparse.ArgumentParser:
                    help="replan this often as well as on deviations, s (default: 0, only on deviations)")
     p.add_argument("--planning-time-factor", type=_nonnegative, default=1.0,
                    help="simulated seconds charged per second of planning (default: 1, honest)")
+    p.add_argument("--extra-plan-delay-s", type=_nonnegative, default=0.0,
+                   help="a slow planner: every replan reaches the aircraft this much later, s (default: 0)")
+    p.add_argument("--fail-every", type=int, default=0, metavar="K",
+                   help="a failing planner: every K-th replan fails (2: every other one; default: 0, none)")
     p.add_argument("--simulator", choices=("ours", "bluesky"), default="ours",
                    help="who flies the plans: our FlightSimulator, or BlueSky's aircraft and autopilot (steady wind "
                         "only; needs the bluesky extra) (default: %(default)s)")
@@ -107,10 +111,12 @@ def summary_lines(m: ClosedLoopMetrics, planner_side: bool = True) -> list[str]:
         f"{f'; {m.failed_replans} failed' if m.failed_replans else ''}), order changes {m.order_changes}",
         f"  planning time        first {_seconds(m.first_plan_s)}; replans median {_seconds(lat['median'])}, p95 "
         f"{_seconds(lat['p95'])}, max {_seconds(lat['max'])}",
+        f"  fallback             {100.0 * m.fallback_share:.1f} % of the flight time; {m.holds} holds, safety net "
+        f"{m.net_alerts} alerts, {m.net_uses} uses ({m.vectors} vectors)",
         f"  whole run            {m.wall_s:.1f} s wall clock",
     ]
     if not planner_side:  # the simulator does not see the service's requests
-        del lines[4:6]
+        del lines[4:7]
     if m.external_losses_of_separation is not None:
         found = m.external_losses_of_separation
         lines.insert(3, f"  simulator's LoS      {len(found)}{' (' + ', '.join(found) + ')' if found else ''} "
@@ -168,7 +174,8 @@ def main(argv: list[str] | None = None) -> int:
                        seed=None if args.seed < 0 else args.seed),
         plan=build_plan_options(values),
         planner_knows_wind=not args.unknown_wind, radar_noise_m=args.noise_m, radar_period_s=args.radar_period_s,
-        replan_period_s=args.replan_period_s, planning_time_factor=args.planning_time_factor, progress=not args.quiet)
+        replan_period_s=args.replan_period_s, planning_time_factor=args.planning_time_factor, progress=not args.quiet,
+        extra_plan_delay_s=args.extra_plan_delay_s, fail_every=max(args.fail_every, 0))
     out = args.out or Path("out") / "closed_loop" / scenario.name
     out.mkdir(parents=True, exist_ok=True)
     t0 = time.perf_counter()

@@ -31,12 +31,13 @@ from dataclasses import dataclass
 import numpy as np
 
 from mal_planner.dynamics import ControlLimits, DynamicsModel
+from mal_planner.service.conflicts import POSITION_TIME_PER_TURN_TIME
 from mal_planner.trajectory import Reference
 
 ATTITUDE_TIME_PER_TURN_TIME = 0.25
 """T_a / T: how fast heading and flight-path-angle errors are taken out."""
-POSITION_TIME_PER_TURN_TIME = 0.5
-"""T_p / T: how fast position errors are taken out (T_a / T_p = 1/2: damping 1 / (2 sqrt(1/2)) = 0.71)."""
+# T_p / T: how fast position errors are taken out (T_a / T_p = 1/2: damping 1 / (2 sqrt(1/2)) = 0.71); the service's
+# prediction of the traffic flies with the same.
 SEARCH_TURN_TIMES = 1.0
 """How far from the clock the closest point of the plan is searched, in turn times: along-track errors are seconds,
 and a plan that loops comes back near itself only after 2 pi turn times."""

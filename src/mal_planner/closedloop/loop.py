@@ -30,7 +30,7 @@ from mal_planner.options import SERVICE_TIME_LIMIT_S, PlanOptions
 from mal_planner.pipeline import Planner, PlanResult
 from mal_planner.scales import Scales
 from mal_planner.scenario import Scenario
-from mal_planner.service.book import Event, Handout, Kept, Stale, Withdrawn
+from mal_planner.service.book import Event, Handout, Instructed, Kept, Stale, Withdrawn
 from mal_planner.service.core import PlanningService
 from mal_planner.service.request import PlanRequest
 from mal_planner.service.rules import TRACK_FILTER_TURN_TIMES, ServiceRules
@@ -82,6 +82,10 @@ class ClosedLoopOptions:
     (:func:`~mal_planner.service.rules.tracking_margins`); False: the open-loop planner's margins."""
     progress: bool = False
     """Log a progress line every :data:`PROGRESS_PERIOD_S` wall-clock seconds."""
+    extra_plan_delay_s: float = 0.0
+    """A slow planner: every replan reaches the aircraft this much later (tests of the fallback)."""
+    fail_every: int = 0
+    """A failing planner: every this many-th replan fails (2: every other one; 0: none) (tests of the fallback)."""
 
 
 @dataclass
@@ -113,6 +117,10 @@ class ClosedLoopRun:
     replans: list[Replan]
     first: Replan
     wall_s: float
+    instructions: list[tuple[float, str, str]] = field(default_factory=list)
+    """What each aircraft was told to fly and when: (time, callsign, "plan" / "hold" / "vector" / "none")."""
+    guard: dict[str, int] = field(default_factory=dict)
+    """The service's holds, vectors, safety-net alerts and uses (:class:`~mal_planner.service.guard.Guard`)."""
 
 
 @dataclass
@@ -155,6 +163,7 @@ class ClosedLoop:
         self.service = PlanningService(base, self.rules, opts.plan, flown=opts.tracking_margins)
         self.planner = Planner(self.service.options)
         self.replans: list[Replan] = []
+        self.instructions: list[tuple[float, str, str]] = []
         self._records: dict[int, Replan] = {}
 
     @property
@@ -169,9 +178,12 @@ class ClosedLoop:
 
     # -- the service's side ----------------------------------------------------------------------------------------
     def _tracks(self, truth: bool = False) -> dict[str, Track]:
-        return {ac.callsign: Track(ac.callsign, self.sim.t, ac.state.copy() if truth else self.noise.apply(ac.state),
-                                   ac.model.speed, ac.wake)
-                for ac in self.sim.measurements()}
+        tracks = {}
+        for ac in self.sim.measurements():
+            state = self.sim.radar_state(ac)
+            tracks[ac.callsign] = Track(ac.callsign, self.sim.t, state if truth else self.noise.apply(state),
+                                        ac.model.speed, ac.wake)
+        return tracks
 
     def _radar_scan(self) -> None:
         """The radar's tracks of every aircraft flying, into the service; tracks of aircraft that landed dropped."""
@@ -185,8 +197,11 @@ class ClosedLoop:
         t_request = self.sim.t
         start, cpu0 = time.perf_counter(), time.process_time()
         result, failure = None, None
+        injected = self.options.fail_every > 0 and (len(self.replans) + 1) % self.options.fail_every == 0
         if isinstance(request, str):
             failure = request
+        elif injected and reason != "initial plan":
+            failure = f"failed on purpose (every {self.options.fail_every}th replan fails: fail_every)"
         else:
             try:
                 self.planner.options = request.options
@@ -200,6 +215,8 @@ class ClosedLoop:
             times = result.landing_times()
             order = sorted(times, key=times.__getitem__)
         charged = (cpu if self.options.charge == "cpu" else wall) * self.options.planning_time_factor
+        if reason != "initial plan":
+            charged += self.options.extra_plan_delay_s
         t = request.plan_start if not isinstance(request, str) else t_request
         record = Replan(t, reason, wall, t_request + charged, failure is None, failure or "verified", tracked, order,
                         cpu, charged)
@@ -224,6 +241,11 @@ class ClosedLoop:
             if isinstance(event, Handout):
                 for cs in event.trajectories:
                     self.sim.set_plan(cs, self.service.book.flying[cs], event.at)
+                    self.instructions.append((event.at, cs, "plan"))
+            elif isinstance(event, Instructed):
+                for fb in event.fallbacks:
+                    self.sim.set_plan(fb.callsign, fb.reference, fb.issued_at)
+                    self.instructions.append((fb.issued_at, fb.callsign, fb.kind))
             elif isinstance(event, Stale):
                 record = self._records.get(id(event.request))
                 if record is not None:
@@ -232,6 +254,7 @@ class ClosedLoop:
             elif isinstance(event, Withdrawn):
                 for cs in event.callsigns:
                     self.sim.set_plan(cs, None, self.sim.t)
+                    self.instructions.append((self.sim.t, cs, "none"))
             elif isinstance(event, Kept):
                 log.debug("t=%.1f s: replan failed, the aircraft keep their plans", self.sim.t)
 
@@ -282,13 +305,14 @@ class ClosedLoop:
             if opts.progress and time.perf_counter() >= next_progress:
                 next_progress = time.perf_counter() + PROGRESS_PERIOD_S
                 log.info("%s", self.progress_line())
+            self._apply(self.service.instruct(self.sim.t))
             reason = self.service.poll(self.sim.t)
-            if reason is None:
-                continue
-            tracked = sorted(self.service.intake.estimates())
-            pending = self._plan(self.service.request(reason, self.sim.t), reason, tracked)
-            self.replans.append(pending.record)
-        return ClosedLoopRun(self.scenario, opts, self.sim, self.replans, first, time.perf_counter() - wall0)
+            if reason is not None:
+                tracked = sorted(self.service.intake.estimates())
+                pending = self._plan(self.service.request(reason, self.sim.t), reason, tracked)
+                self.replans.append(pending.record)
+        return ClosedLoopRun(self.scenario, opts, self.sim, self.replans, first, time.perf_counter() - wall0,
+                             self.instructions, dict(self.service.guard.counts))
 
     def progress_line(self) -> str:
         """Simulated time, aircraft airborne and landed, plans made: one line for a long run's log."""

@@ -61,6 +61,15 @@ class ClosedLoopMetrics:
     """Replans whose landing order differs from the previous plan's (for the aircraft in both)."""
     wall_s: float
     notes: list[str] = field(default_factory=list)
+    fallback_share: float = 0.0
+    """Share of the aircraft's flight time flown on a service fallback (a hold or a vector) or on nothing."""
+    holds: int = 0
+    """Holds the service gave (:mod:`mal_planner.service.fallback`)."""
+    net_alerts: int = 0
+    """Pairs the safety net predicted in conflict (:mod:`mal_planner.service.safety_net`)."""
+    net_uses: int = 0
+    """Scans at which the safety net vectored aircraft (the planner had no plan in time)."""
+    vectors: int = 0
     external_losses_of_separation: list[str] | None = None
     """The losses of separation the simulator's own detection counted (pairs "A-B"), when it has one (BlueSky's
     ``external_los_pairs``); None: ours only."""
@@ -85,7 +94,29 @@ def _reason_key(reason: str) -> str:
 
 def measure(run: ClosedLoopRun) -> ClosedLoopMetrics:
     """The metrics of one closed-loop run."""
-    return measure_flight(run.scenario, run.sim, run.replans, run.first, run.wall_s)
+    m = measure_flight(run.scenario, run.sim, run.replans, run.first, run.wall_s)
+    m.fallback_share = fallback_share(run.sim, run.instructions)
+    m.holds, m.vectors = run.guard.get("holds", 0), run.guard.get("vectors", 0)
+    m.net_alerts, m.net_uses = run.guard.get("alerts", 0), run.guard.get("uses", 0)
+    return m
+
+
+def fallback_share(sim: FlightSimulator, instructions: list[tuple[float, str, str]]) -> float:
+    """Share of the flight time (all aircraft) flown on anything but a plan, from the service's instructions."""
+    total = fallback = 0.0
+    for ac in sim.aircraft:
+        if len(ac.t) < 2:
+            continue
+        start, end = ac.t[0], ac.t[-1]
+        told = sorted((t, kind) for t, cs, kind in instructions if cs == ac.callsign)
+        kind, since = "none", start
+        for t, new in told + [(end, "end")]:
+            t = min(max(t, start), end)
+            if kind != "plan":
+                fallback += t - since
+            kind, since = new, t
+        total += end - start
+    return fallback / total if total > 0 else 0.0
 
 
 def _infringements(sc: Scenario, sim: FlightSimulator, flown: dict[str, tuple[np.ndarray, np.ndarray]]

@@ -199,6 +199,14 @@ class FlightSimulator:
             ac.deviation_nm = max(ac.deviation_nm, float(np.linalg.norm(ac.reference.position(t) - ac.state[:3])))
 
     # -- outputs ---------------------------------------------------------------------------------------
+    @staticmethod
+    def radar_state(ac: SimAircraft) -> np.ndarray:
+        """What a radar reports of ``ac``: its state with the heading in [-pi, pi) (the simulator's is continuous and
+        passes 2 pi in a hold, which the service's gate rightly takes for degrees)."""
+        state = ac.state.copy()
+        state[4] = (state[4] + math.pi) % (2.0 * math.pi) - math.pi
+        return state
+
     def measurements(self) -> list[SimAircraft]:
         """The aircraft still flying (their radar tracks; noise is the caller's)."""
         return [ac for ac in self.aircraft if ac.flying]

@@ -87,7 +87,8 @@ class RadarSimulator:
 
     def measurements(self) -> list[tuple[str, np.ndarray, float, str | None]]:
         """``(callsign, state, airspeed nm/s, wake)`` of every aircraft still flying, with position noise."""
-        return [(ac.callsign, self.noise.apply(ac.state), ac.model.speed, ac.wake) for ac in self.sim.measurements()]
+        return [(ac.callsign, self.noise.apply(self.sim.radar_state(ac)), ac.model.speed, ac.wake)
+                for ac in self.sim.measurements()]
 
 
 def parse_args(argv: list[str] | None = None) -> argparse.Namespace:

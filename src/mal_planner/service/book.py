@@ -1,10 +1,11 @@
 """The plan book: which plan each aircraft flies, the plans waiting for their start, kept plans and withdrawals.
 
 A plan arrives (:meth:`PlanBook.arrive`) when its planning ends. It is handed out when it starts
-(:meth:`PlanBook.due`; at once if it started already), unless it is stale: the aircraft then stray more than the
-deviation threshold from it (they flew on elsewhere while it was planned). Handed out, each of its aircraft flies
-it; an aircraft that a later plan leaves out (established on final, or left out) flies on along the plan it has. A
-failed replan keeps the plans being flown; after ``kept_plan_expiry_s`` of failures they are withdrawn. Every time
+(:meth:`PlanBook.due`; at once if it started already), re-anchored to where its aircraft are then, unless that is
+unsafe (:mod:`mal_planner.service.reanchor`): then it is stale. Handed out, each of its aircraft flies it; an
+aircraft that a later plan leaves out (established on final, or left out) flies on along the plan it has. A failed
+replan keeps the plans being flown; after ``kept_plan_expiry_s`` of failures they are withdrawn. An aircraft
+without a plan flies the service's fallback (a hold or the safety net's vector, :meth:`PlanBook.give`). Every time
 is on the radar's clock.
 """
 
@@ -17,6 +18,10 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
+from mal_planner.scales import Scales
+from mal_planner.service.conflicts import Minima
+from mal_planner.service.fallback import Fallback
+from mal_planner.service.reanchor import REANCHOR_TURN_TIMES, reanchored, unsafe_offsets
 from mal_planner.service.request import PlanRequest
 from mal_planner.service.rules import ServiceRules
 from mal_planner.service.tracks import Track
@@ -67,7 +72,14 @@ class Withdrawn:
     why: str
 
 
-Event = Handout | Stale | Kept | Withdrawn
+@dataclass(frozen=True)
+class Instructed:
+    """The service's own instructions (holds, the safety net's vectors) given to aircraft without a valid plan."""
+
+    fallbacks: tuple[Fallback, ...]
+
+
+Event = Handout | Stale | Kept | Withdrawn | Instructed
 
 
 @dataclass
@@ -83,8 +95,34 @@ class PlanBook:
     last_arrival: float = -math.inf
     """When the latest plan arrived or was handed out (-inf: the policy may ask at once)."""
     kept_since: float | None = None
+    search_s: float = math.inf
+    """How far from the clock the closest point of an instruction is searched (the guidance's: a turn time)."""
+    fallbacks: dict[str, Fallback] = field(default_factory=dict)
+    """The hold or vector of each aircraft that flies no plan."""
     on_handout: Callable[[str, Reference | None, Reference, float], None] | None = None
     """Called per aircraft as it gets a new plan (old plan, new plan, time): the track filter re-anchors on it."""
+
+    def instruction(self, callsign: str) -> Reference | None:
+        """What an aircraft flies now: its plan, else its fallback, else nothing."""
+        plan = self.flying.get(callsign)
+        if plan is not None:
+            return plan
+        fallback = self.fallbacks.get(callsign)
+        return None if fallback is None else fallback.reference
+
+    def instructions(self) -> dict[str, Reference]:
+        return {**{cs: f.reference for cs, f in self.fallbacks.items()}, **self.flying}
+
+    def give(self, fallback: Fallback, now: float) -> None:
+        """The aircraft flies ``fallback`` from ``now`` (its plan, if any, is dropped: it is no longer valid)."""
+        cs = fallback.callsign
+        old = self.instruction(cs)
+        if self.on_handout is not None:
+            self.on_handout(cs, old, fallback.reference, now)
+        if self.flying.pop(cs, None) is not None and self.current is not None:
+            kept = {k: tr for k, tr in self.current.trajectories.items() if k != cs}
+            self.current = Handout(self.current.request, self.current.result, kept, self.current.at, self.current.lost)
+        self.fallbacks[cs] = fallback
 
     def arrive(self, request: PlanRequest, result: PlanResult, now: float, tracked: set[str]) -> list[Event]:
         """A verified plan arrived at ``now``: handed out when it starts (now, if it started already)."""
@@ -103,16 +141,25 @@ class PlanBook:
         return Kept(reason, self.kept_since, start, 0.0 if start is None else now - start, tuple(sorted(self.flying)))
 
     def due(self, now: float, tracked: set[str]) -> list[Event]:
-        """Hand out the plans that start by ``now`` (unless stale); withdraw a kept plan past its expiry."""
+        """Hand out the plans that start by ``now``, re-anchored (unless that is unsafe: stale); withdraw a kept plan
+        past its expiry."""
         events: list[Event] = []
         for result, request in [u for u in self.upcoming if u[0].start_time <= now]:
             self.upcoming.remove((result, request))
-            stale = self.stale(result, request, now)
-            if stale is not None:  # the aircraft keep the plans they fly; the policy asks again at once
+            trajectories, lost = self._planned(result, request, tracked)
+            offsets = self._offsets(trajectories, result.start_time, now)
+            scales, minima = Scales.of(result.scenario), Minima.of(result.scenario)
+            refs = {cs: Reference(tr.t + result.start_time, tr.states) for cs, tr in trajectories.items()}
+            why = unsafe_offsets(refs, offsets, now, scales, minima)
+            if why is not None:  # the aircraft keep what they fly; the policy asks again at once
                 self.last_arrival = -math.inf
-                events.append(Stale(request, stale))
+                events.append(Stale(request, f"stale: {why}, {now - request.plan_start:.1f} s after the tracks it "
+                                             "was made from; not handed out"))
                 continue
-            events.append(self._hand_out(result, request, now, tracked))
+            fade_s = scales.seconds(REANCHOR_TURN_TIMES)
+            moved = {cs: reanchored(tr, offsets[cs], now - result.start_time, fade_s) if cs in offsets else tr
+                     for cs, tr in trajectories.items()}
+            events.append(self._hand_out(result, request, now, moved, lost))
         expiry = self.rules.kept_plan_expiry_s
         if self.kept_since is not None and expiry > 0 and now - self.kept_since >= expiry and self.flying:
             self.kept_since = None
@@ -120,46 +167,44 @@ class PlanBook:
                                                              " (kept_plan_expiry_s)"))
         return events
 
-    def _hand_out(self, result: PlanResult, request: PlanRequest, now: float, tracked: set[str]) -> Handout:
+    @staticmethod
+    def _planned(result: PlanResult, request: PlanRequest, tracked: set[str]
+                 ) -> tuple[dict[str, Trajectory], tuple[str, ...]]:
+        """The plan's trajectories of the aircraft still tracked, and those lost while it was planned."""
         trajectories = {tr.callsign: tr for tr in (result.landing.trajectories if result.landing else [])}
         if not trajectories:  # the initializer's paths (optimizer off)
             trajectories = {tr.callsign: tr for tr in result.trajectories()}
         lost = tuple(sorted(cs for cs in trajectories if cs not in tracked)) if not request.given_tracks else ()
-        for cs in lost:
-            del trajectories[cs]
+        return {cs: tr for cs, tr in trajectories.items() if cs not in lost}, lost
+
+    def _offsets(self, trajectories: Mapping[str, Trajectory], start: float, now: float) -> dict[str, np.ndarray]:
+        """Where each aircraft is at ``now`` (its filtered estimate) less where the plan has it."""
+        out = {}
+        for cs, traj in trajectories.items():
+            flying = self.instruction(cs)
+            here = None if flying is None else self.estimate(cs, flying, now)
+            if here is not None and 0.0 <= now - start <= float(traj.t[-1]):
+                out[cs] = here - traj.state_at(np.array([now - start]))[0, :3]
+        return out
+
+    def _hand_out(self, result: PlanResult, request: PlanRequest, now: float, trajectories: dict[str, Trajectory],
+                  lost: tuple[str, ...]) -> Handout:
         for cs, traj in trajectories.items():
             ref = Reference(traj.t + result.start_time, traj.states)
             if self.on_handout is not None:
-                self.on_handout(cs, self.flying.get(cs), ref, now)
+                self.on_handout(cs, self.instruction(cs), ref, now)
             self.flying[cs] = ref
+            self.fallbacks.pop(cs, None)
         self.kept_since = None
         self.last_arrival = now
         self.current = Handout(request, result, trajectories, now, lost)
         return self.current
 
-    def stale(self, result: PlanResult, request: PlanRequest, now: float) -> str | None:
-        """Why a plan is not handed out at ``now`` (None: it is): an aircraft then strays more than the deviation
-        threshold from it (its planning took longer than the lead it was made with, or the prediction along the old
-        plans was off). Handed out, it would ask for the next replan at once, from aircraft turning to join it."""
-        if self.rules.deviation_nm <= 0:
-            return None
-        worst, who = 0.0, ""
-        for traj in result.landing.trajectories if result.landing else []:
-            flying = self.flying.get(traj.callsign)
-            here = None if flying is None else self.estimate(traj.callsign, flying, now)
-            if here is None or not 0.0 <= now - result.start_time <= float(traj.t[-1]):
-                continue
-            dev = float(np.linalg.norm(traj.state_at(np.array([now - result.start_time]))[0, :3] - here))
-            if dev > worst:
-                worst, who = dev, traj.callsign
-        if worst <= self.rules.deviation_nm:
-            return None
-        return (f"stale: {who} {worst:.3f} nm from it when it starts, {now - request.plan_start:.1f} s after the "
-                f"tracks it was made from (threshold {self.rules.deviation_nm:.3f} nm); not handed out")
-
     def withdraw(self, callsigns: list[str], why: str) -> Withdrawn:
         """Withdraw the plans of ``callsigns``: they fly none any more."""
         gone = tuple(cs for cs in callsigns if self.flying.pop(cs, None) is not None)
+        for cs in callsigns:
+            self.fallbacks.pop(cs, None)
         if self.current is not None and gone:
             kept = {cs: tr for cs, tr in self.current.trajectories.items() if cs not in gone}
             self.current = Handout(self.current.request, self.current.result, kept, self.current.at,
@@ -167,18 +212,20 @@ class PlanBook:
         return Withdrawn(gone, why)
 
     def predicted(self, tracks: Mapping[str, Track], at: float) -> dict[str, Track]:
-        """The tracks at time ``at``, along the plans being flown (the plan's state then, moved by the deviation
-        measured at the track's time, as model predictive control does with a known delay); straight on where an
-        aircraft flies none. A track already stamped ``at`` is kept as it is."""
+        """The tracks at time ``at``, along the instructions being flown as the guidance follows them (from the
+        instruction's point closest to the track, the along-track error kept, the offset there carried along, as
+        model predictive control does with a known delay); straight on where an aircraft flies none. A track already
+        stamped ``at`` is kept as it is."""
         out = {}
         for cs, tr in tracks.items():
-            ref = self.flying.get(cs)
+            ref = self.instruction(cs)
             if at == tr.stamp:
                 out[cs] = tr
             elif ref is None or not ref.start <= tr.stamp or at > ref.end:
                 out[cs] = Track(cs, at, tr.at(at), tr.speed, tr.wake)
             else:
-                now, then = ref.sample(tr.stamp), ref.sample(at)
+                s0 = ref.closest_time(tr.state[:3], tr.stamp, self.search_s)
+                now, then = ref.sample(s0), ref.sample(s0 + at - tr.stamp)
                 state = then[:5].copy()
                 state[:3] += tr.state[:3] - now[:3]
                 state[3:5] += tr.state[3:5] - now[3:5]

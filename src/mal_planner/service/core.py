@@ -21,8 +21,10 @@ import numpy as np
 
 from mal_planner.obstacles import Superquadric
 from mal_planner.options import PlanOptions, scenario_for
+from mal_planner.scales import Scales
 from mal_planner.scenario import Scenario
 from mal_planner.service.book import Event, PlanBook
+from mal_planner.service.guard import Guard
 from mal_planner.service.inputs import apply_zone, build_plan_scenario
 from mal_planner.service.intake import TrackIntake, Verdict
 from mal_planner.service.policy import ReplanPolicy, wind_change_reason
@@ -36,6 +38,10 @@ if TYPE_CHECKING:
     from mal_planner.pipeline import PlanResult
 
 log = logging.getLogger("mal_planner.service")
+
+ESCALATION_FACTOR = 8.0
+"""A replan's time limit doubles after each failure in a row, up to this factor (a terminal area 224 s, the thesis
+120 s)."""
 
 
 
@@ -55,8 +61,9 @@ class PlanningService:
         self.wind: tuple[float, float] = scenario.wind
         self._given_options = options or PlanOptions()
         self.options = service_plan_options(self._given_options, scenario, rules, flown=flown)
-        self.book = PlanBook(rules, self._estimate)
-        self.intake = TrackIntake(scenario, rules, plan_of=self.book.flying.get)
+        self.book = PlanBook(rules, self._estimate, search_s=Scales.of(scenario).time_s)
+        self.intake = TrackIntake(scenario, rules, plan_of=self.book.instruction)
+        self.guard = Guard.of(scenario, rules.deviation_nm)
         self.book.on_handout = self.intake.filter.replanned
         self.policy = ReplanPolicy(rules)
         self.latency_s = 0.0
@@ -67,6 +74,8 @@ class PlanningService:
         """A plan was asked for since the last one ended (by the policy or a caller)."""
         self.planned = False
         self.in_flight: PlanRequest | None = None
+        self.failures_in_a_row = 0
+        """Plans that failed (or were refused) since the last one handed out: the next replan gets more time."""
 
     def _estimate(self, callsign: str, plan: Reference, t: float) -> np.ndarray | None:
         return self.intake.filter.estimate(callsign, plan, t)
@@ -125,18 +134,18 @@ class PlanningService:
             minimum = 1 if given else self.rules.min_aircraft
             if len(current) < minimum:
                 return f"{len(current)} aircraft tracked (min_aircraft {self.rules.min_aircraft}): nothing to plan"
+            base, options = self.base_scenario(), self.options
+            if self.planned or what_if:
+                options = replace(options, time_limit_s=self._replan_limit(options, what_if))
             if given:  # explicit states (a what-if, the closed loop's truth at its start): as they are stamped
                 plan_start = max(t.stamp for t in current.values())
             else:  # the radar's: predicted to when the plan is expected to reach the aircraft
-                lead_s = LEAD_PER_LATENCY * self.latency_s if lead else 0.0
+                lead_s = LEAD_PER_LATENCY * self._expected_latency(options.time_limit_s) if lead else 0.0
                 plan_start = max(now, *(t.stamp for t in current.values())) + lead_s
                 current = self.book.predicted(current, plan_start)
             if self.epoch is None and not what_if:
                 self.epoch = plan_start
             shift = 0.0 if self.epoch is None else max(0.0, plan_start - self.epoch)
-            base, options = self.base_scenario(), self.options
-            if self.planned or what_if:
-                options = replace(options, time_limit_s=replan_time_limit(options, self.rules))
             if not what_if:
                 self.planned = True
         inputs = build_plan_scenario(base, current, plan_start, shift)
@@ -150,12 +159,39 @@ class PlanningService:
                 self.in_flight, self.asked = req, False
         return req
 
+    def _replan_limit(self, options: PlanOptions, what_if: bool) -> float | None:
+        """A replan's time limit: the rules' (:func:`replan_time_limit`), doubled after each failure in a row up to
+        :data:`ESCALATION_FACTOR` times it: a replan that fails for time would fail alike forever (20 aircraft planned
+        afresh take a minute), and the aircraft are safe meanwhile (on their plans, holding, or vectored)."""
+        limit = replan_time_limit(options, self.rules)
+        if limit is None or what_if:
+            return limit
+        return limit * min(2.0 ** self.failures_in_a_row, ESCALATION_FACTOR)
+
+    def _expected_latency(self, limit_s: float | None) -> float:
+        """The latest planning time, at most this plan's limit (a first plan of many aircraft takes minutes: a replan
+        started that far ahead would keep every replan waiting)."""
+        return self.latency_s if limit_s is None or not math.isfinite(limit_s) else min(self.latency_s, limit_s)
+
+    def instruct(self, now: float) -> list[Event]:
+        """After a radar scan: a hold for each aircraft without a plan, the safety net's vectors where the planner
+        has no plan in time (:mod:`mal_planner.service.guard`)."""
+        with self._lock:
+            tracks = self.intake.estimates()
+            if not tracks or not self.planned:
+                return []
+            starts = [r.start_time for r, _ in self.book.upcoming]
+            if self.in_flight is not None:
+                starts.append(self.in_flight.plan_start)
+            return list(self.guard.instruct(tracks, self.book, now, min(starts, default=None)))
+
     def refused(self, now: float, latency_s: float | None = None) -> None:
         """A radar request was refused (:meth:`request` said why), or its planning broke down, at ``now``,
         ``latency_s`` after it was asked: the policy backs off as after a failed plan, but the plans flown are not
         marked as kept."""
         with self._lock:
             self.asked, self.planned, self.in_flight = False, True, None
+            self.failures_in_a_row += 1
             self.book.last_arrival = now
             if latency_s is not None:
                 self.latency_s = latency_s
@@ -171,8 +207,10 @@ class PlanningService:
             self.in_flight = None
             self.latency_s = latency_s
             if result is None or failure is not None:
+                self.failures_in_a_row += 1
                 kept = self.book.failed(failure or "no result", now)
                 return [kept] if kept is not None else []
+            self.failures_in_a_row = 0
             return self.book.arrive(request, result, now, set(self.intake.store.snapshot()))
 
     def due(self, now: float) -> list[Event]:
@@ -194,6 +232,7 @@ class PlanningService:
         """Add, replace (``zone``) or remove (None) a no-fly zone; returns what changed (ValueError: no such zone)."""
         with self._lock:
             self.obstacles, what = apply_zone(self.obstacles, name, zone)
+            self.guard.scenario = replace(self.scenario, obstacles=self.obstacles)
             return what
 
     def update_wind(self, wind: tuple[float, float]) -> tuple[str, str | None]:
@@ -226,6 +265,7 @@ class PlanningService:
             self.intake.filter.time_constant_s = rules.filter_time_constant_s
             self.book.rules = rules
             self.policy.rules = rules
+            self.guard = Guard.of(replace(self.scenario, obstacles=self.obstacles), rules.deviation_nm)
             self.options = service_plan_options(self._given_options, self.scenario, rules, flown=self.flown)
 
     def radar_now(self, clock: float) -> float | None:

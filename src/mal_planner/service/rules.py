@@ -19,6 +19,10 @@ from mal_planner.service.track_filter import noise_factor
 DEVIATION_PER_NOISE = 6.0
 """... or this many radar-noise sigmas (after the track filter), if more: a deviation the radar can tell from its
 noise."""
+DEVIATION_PER_SEPARATION = 0.05
+"""... or this share of the separation, if more (a terminal area 0.15 nm of 3; the thesis 0.0125 nm, below its 0.05 nm
+of path accuracies): plans keep twice it as a margin (10 % of the minimum), and a real-size aircraft is not replanned
+for a tenth of a mile."""
 LEAD_PER_LATENCY = 1.5
 """A replan the policy asks for starts this many times the latest planning time ahead of the tracks it is made
 from (predicted along the plans being flown), so that it reaches the aircraft before it starts."""
@@ -70,13 +74,15 @@ class ServiceRules:
                     filter_turn_times: float = TRACK_FILTER_TURN_TIMES,
                     replan_limit_turn_times: float = REPLAN_LIMIT_TURN_TIMES) -> ServiceRules:
         """The closed loop's rules, sized by the scenario's scales: the deviation threshold the larger of
-        :data:`DEVIATION_ACCURACIES` path accuracies and :data:`DEVIATION_PER_NOISE` filtered noise sigmas (unless
-        given), a turn time between replans. A simulated radar never misses a scan: an aircraft missing from the
-        latest one has landed (the track timeout is half a period)."""
+        :data:`DEVIATION_ACCURACIES` path accuracies, :data:`DEVIATION_PER_SEPARATION` separations and
+        :data:`DEVIATION_PER_NOISE` filtered noise sigmas (unless given), a turn time between replans. A simulated
+        radar never misses a scan: an aircraft missing from the latest one has landed (the track timeout is half a
+        period)."""
         scales = Scales.of(scenario)
         tau = scales.seconds(filter_turn_times)
         if deviation_nm is None:
             deviation_nm = max(DEVIATION_ACCURACIES * scales.accuracy_nm,
+                               DEVIATION_PER_SEPARATION * scales.separation_nm,
                                DEVIATION_PER_NOISE * noise_sigma_nm * noise_factor(radar_period_s, tau))
         return cls(deviation_nm=deviation_nm, min_interval_s=scales.seconds(REPLAN_INTERVAL_TURN_TIMES),
                    period_s=period_s, filter_time_constant_s=tau, track_timeout_s=0.5 * radar_period_s,

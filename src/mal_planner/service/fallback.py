@@ -1,0 +1,133 @@
+"""An instruction for an aircraft without a valid plan: a hold, checked against everyone's instructions first.
+
+A new aircraft, one left out of a plan or one whose plan was withdrawn still needs an instruction: as arrival
+managers and controllers do, it holds until it is planned. The hold is a racetrack's limit, an orbit of
+:data:`HOLD_RADII` turn radii (a terminal area at 30 deg: 0.87 nm at 21 deg of bank, inside ICAO's 25 deg for
+holds; the thesis: 0.45 nm at 34 deg), entered from where the aircraft is: at once or after a straight leg, right
+or left turns, at its level or (with a vertical minimum) stacked a vertical minimum above or below. The first
+candidate that keeps the tracking margin (:attr:`FallbackRules.margin`) from everyone's predicted paths over the
+look-ahead, stays inside the airspace and out of the no-fly zones over a whole orbit, is given; when none does, the
+one with the most separation (the safety net then watches it).
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Iterator
+from dataclasses import dataclass
+
+import numpy as np
+
+from mal_planner.scales import Scales
+from mal_planner.scenario import Scenario
+from mal_planner.service.conflicts import Minima, Picture, closest_to_others
+from mal_planner.service.manoeuvres import holding_pattern
+from mal_planner.service.tracks import Track
+from mal_planner.trajectory import Reference
+
+HOLD_RADII = 1.5
+"""Hold radius in turn radii at the bank limit (the bank of the orbit: atan(tan(limit) / 1.5))."""
+LOOK_AHEAD_TURN_TIMES = 8.0
+"""How far ahead instructions are checked and conflicts predicted (a terminal area 110 s, the thesis 60 s: an STCA
+looks about two minutes ahead)."""
+STEP_TURN_TIMES = 0.25
+"""The prediction's time step (a terminal area 3.4 s)."""
+HOLD_TURN_TIMES = 100.0
+"""A hold is drawn this long (a terminal area 23 min) and renewed before it ends."""
+ENTRY_LEGS_TURN_TIMES = (0.0, 2.0, 4.0, 8.0)
+"""Straight legs tried before the orbit: the hold's fix at, or ahead of, the aircraft."""
+
+
+@dataclass(frozen=True)
+class Fallback:
+    """A service instruction (``kind`` "hold" or "vector") flown like a plan."""
+
+    callsign: str
+    kind: str
+    reference: Reference
+    issued_at: float
+    reason: str
+    clearance: float
+    """The smallest predicted separation from the others when it was given, in minima (inf: alone)."""
+
+
+@dataclass(frozen=True)
+class FallbackRules:
+    """The numbers of the fallback, from the scenario's scales and the service's deviation threshold."""
+
+    scales: Scales
+    minima: Minima
+    margin: float
+    """Separation the fallback keeps beyond the minimum, in minima: twice the deviation threshold, as plans keep."""
+    edge_nm: float
+    """How far inside the airspace the fallback stays: the deviation threshold."""
+
+    @classmethod
+    def of(cls, scenario: Scenario, deviation_nm: float) -> FallbackRules:
+        minima = Minima.of(scenario)
+        return cls(Scales.of(scenario), minima, 2.0 * deviation_nm / minima.horizontal_nm, deviation_nm)
+
+    @property
+    def step_s(self) -> float:
+        return self.scales.seconds(STEP_TURN_TIMES)
+
+    def look_ahead(self, now: float) -> np.ndarray:
+        return now + np.arange(0.0, self.scales.seconds(LOOK_AHEAD_TURN_TIMES) + 1e-9, self.step_s)
+
+    def radius(self) -> float:
+        return HOLD_RADII * self.scales.length_nm
+
+
+def fits_airspace(scenario: Scenario, points: np.ndarray, edge_nm: float) -> bool:
+    """The path through ``points`` inside the airspace by ``edge_nm`` and clear of every no-fly zone (walls too:
+    each chord is tested) by it."""
+    lo, hi = scenario.airspace[:, 0] + edge_nm, scenario.airspace[:, 1] - edge_nm
+    if np.any(points < lo) or np.any(points > hi):
+        return False
+    return not any(np.any(ob.inflated(edge_nm).segment_hits(points[:-1], points[1:])) for ob in scenario.obstacles)
+
+
+def _levels(scenario: Scenario, z: float, rules: FallbackRules) -> Iterator[float]:
+    """The aircraft's level (inside the airspace), then one vertical minimum above and below where there is one."""
+    lo, hi = scenario.airspace[2, 0] + rules.edge_nm, scenario.airspace[2, 1] - rules.edge_nm
+    own = min(max(z, lo), hi)
+    yield own
+    v = rules.minima.vertical_nm
+    if v is not None:
+        for level in (own + v * (1.0 + rules.margin), own - v * (1.0 + rules.margin)):
+            if lo <= level <= hi:
+                yield level
+
+
+def hold_candidates(track: Track, scenario: Scenario, rules: FallbackRules, now: float) -> Iterator[Reference]:
+    """The holds to try, in order of preference (the least change first)."""
+    r = rules.radius()
+    for level in _levels(scenario, float(track.state[2]), rules):
+        for legs in ENTRY_LEGS_TURN_TIMES:
+            for right in (True, False):
+                yield holding_pattern(track.state, track.speed, r, right=right,
+                                      straight_s=rules.scales.seconds(legs), level=level, t0=now,
+                                      duration_s=rules.scales.seconds(HOLD_TURN_TIMES), step_s=rules.step_s)
+
+
+def choose_hold(track: Track, others: Picture, scenario: Scenario, rules: FallbackRules, now: float, reason: str
+                ) -> Fallback:
+    """The hold for ``track``'s aircraft (see the module docstring); ``others``: everyone else's predicted paths on
+    :meth:`FallbackRules.look_ahead` times."""
+    best: tuple[float, Reference] | None = None
+    orbit_s = 2.0 * math.pi * rules.radius() / track.speed
+    for ref in hold_candidates(track, scenario, rules, now):
+        whole = ref.positions(np.arange(now, now + rules.scales.seconds(max(ENTRY_LEGS_TURN_TIMES)) + orbit_s,
+                                        rules.step_s))
+        if not fits_airspace(scenario, whole, rules.edge_nm):
+            continue
+        clearance, _ = closest_to_others(ref.positions(others.times), others, rules.minima, track.callsign)
+        if clearance >= 1.0 + rules.margin:
+            return Fallback(track.callsign, "hold", ref, now, reason, clearance)
+        if best is None or clearance > best[0]:
+            best = (clearance, ref)
+    if best is None:  # nothing fits the airspace (an aircraft at its edge): the first, the net watches it
+        ref = next(hold_candidates(track, scenario, rules, now))
+        clearance, _ = closest_to_others(ref.positions(others.times), others, rules.minima, track.callsign)
+        best = (clearance, ref)
+    return Fallback(track.callsign, "hold", best[1], now, reason, best[0])

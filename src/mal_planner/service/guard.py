@@ -1,0 +1,122 @@
+"""Every aircraft has a safe instruction at every scan: holds for those without a plan, the safety net for all.
+
+:class:`Guard` runs after each radar scan (:meth:`~mal_planner.service.core.PlanningService.instruct`): it
+predicts the traffic along what each aircraft flies, gives a hold to each aircraft without a plan (or whose
+fallback runs out; :mod:`mal_planner.service.fallback`), then looks for conflicts in the picture with the holds in
+it and resolves those the planner cannot resolve in time (:mod:`mal_planner.service.safety_net`). Every hold, alert
+and resolution is counted.
+"""
+
+from __future__ import annotations
+
+import logging
+from collections import Counter
+from collections.abc import Mapping
+from dataclasses import dataclass, field
+
+from mal_planner.scenario import Scenario
+from mal_planner.service.book import Instructed, PlanBook
+from mal_planner.service.conflicts import POSITION_TIME_PER_TURN_TIME, Conflict, Picture, conflicts, picture
+from mal_planner.service.fallback import Fallback, FallbackRules, choose_hold, fits_airspace
+from mal_planner.service.safety_net import displacements, resolution_vectors
+from mal_planner.service.tracks import Track
+
+log = logging.getLogger("mal_planner.service")
+
+ALERT_MARGIN_SHARE = 0.5
+"""The net alerts below 1 + this share of the fallback margin, in minima: the minimum plus one aircraft's tracking
+deviation (a terminal area 3.15 nm of 3)."""
+ACT_TURN_TIMES = 4.0
+"""A conflict predicted this soon is resolved now, whatever plan is on its way (a terminal area 55 s, the thesis
+30 s: a turn of 30 deg then still opens the separation and its margin); a later one waits for a plan due a turn time
+before it."""
+ESTABLISHED_TURN_TIMES = 2.0
+"""An aircraft this close to its plan's end is on final: the net moves the other aircraft of a conflict."""
+
+
+@dataclass
+class Guard:
+    """Holds and the safety net over one scenario (see the module docstring)."""
+
+    scenario: Scenario
+    rules: FallbackRules
+    counts: Counter = field(default_factory=Counter)
+    """holds, vectors, alerts (pairs newly in conflict), uses (scans at which the net gave vectors), waited (alerts
+    left to a plan on its way, per scan)."""
+    _active: set[tuple[str, str]] = field(default_factory=set)
+
+    @classmethod
+    def of(cls, scenario: Scenario, deviation_nm: float) -> Guard:
+        return cls(scenario, FallbackRules.of(scenario, deviation_nm))
+
+    def _picture(self, tracks: Mapping[str, Track], book: PlanBook, now: float) -> Picture:
+        scales = self.rules.scales
+        return picture(tracks, book.instructions(), self.rules.look_ahead(now), search_s=scales.time_s,
+                       settle_s=scales.seconds(POSITION_TIME_PER_TURN_TIME))
+
+    def instruct(self, tracks: Mapping[str, Track], book: PlanBook, now: float, deliver_at: float | None
+                 ) -> list[Instructed]:
+        """Holds and resolutions at ``now``; ``deliver_at``: when the next plan is expected (None: none coming)."""
+        pic = self._picture(tracks, book, now)
+        given = self._holds(tracks, book, pic, now)
+        given += self._net(tracks, book, pic, now, deliver_at)
+        return [Instructed(tuple(given))] if given else []
+
+    def _holds(self, tracks: Mapping[str, Track], book: PlanBook, pic: Picture, now: float) -> list[Fallback]:
+        renew_by = now + self.rules.scales.time_s
+        given = []
+        for cs in sorted(tracks):
+            fb = book.fallbacks.get(cs)
+            if cs in book.flying or (fb is not None and fb.reference.end > renew_by):
+                continue
+            given.append(self._hold(tracks[cs], book, pic, now, "no plan" if fb is None else f"its {fb.kind} ends"))
+        return given
+
+    def _hold(self, track: Track, book: PlanBook, pic: Picture, now: float, why: str) -> Fallback:
+        """The hold of ``track``'s aircraft against everyone else in ``pic`` (which it then joins), given."""
+        cs = track.callsign
+        others = Picture(pic.times, {k: v for k, v in pic.paths.items() if k != cs})
+        hold = choose_hold(track, others, self.scenario, self.rules, now, why)
+        book.give(hold, now)
+        pic.paths[cs] = hold.reference.positions(pic.times)
+        self.counts["holds"] += 1
+        log.info("t=%.1f s: %s holds (%s; %.2f minima from the others)", now, cs, why, hold.clearance)
+        return hold
+
+    def _net(self, tracks: Mapping[str, Track], book: PlanBook, pic: Picture, now: float,
+             deliver_at: float | None) -> list[Fallback]:
+        alerts = conflicts(pic, self.rules.minima, 1.0 + ALERT_MARGIN_SHARE * self.rules.margin)
+        pairs = {(c.a, c.b) for c in alerts}
+        self.counts["alerts"] += len(pairs - self._active)
+        self._active = pairs
+        if not alerts:
+            return []
+        react, act = self.rules.scales.time_s, self.rules.scales.seconds(ACT_TURN_TIMES)
+        urgent: list[Conflict] = []
+        for c in alerts:
+            if c.t - now > act and deliver_at is not None and deliver_at <= c.t - react:
+                self.counts["waited"] += 1
+            else:
+                urgent.append(c)
+        if not urgent:
+            return []
+        final = {cs: ref.end for cs, ref in book.flying.items()
+                 if ref.end - now < self.rules.scales.seconds(ESTABLISHED_TURN_TIMES)}
+        dv = displacements(urgent, pic, self.rules, now, final)
+        headings = {cs: fb.reference.table[-1, 4] for cs, fb in book.fallbacks.items() if fb.kind == "vector"}
+        vectors = resolution_vectors(tracks, dv, urgent, self.scenario, self.rules, now, headings)
+        given = []
+        for fb in vectors:
+            if not fits_airspace(self.scenario, fb.reference.positions(pic.times), self.rules.edge_nm):
+                continue  # into a no-fly zone or out of the airspace: it holds instead (below)
+            book.give(fb, now)
+            pic.paths[fb.callsign] = fb.reference.positions(pic.times)
+            self.counts["vectors"] += 1
+            log.info("t=%.1f s: %s vectored by the safety net (%s)", now, fb.callsign, fb.reason)
+            given.append(fb)
+        for fb in vectors:
+            if fb not in given:
+                given.append(self._hold(tracks[fb.callsign], book, pic, now, "safety net: a vector would leave the "
+                                        "airspace or enter a no-fly zone"))
+        self.counts["uses"] += 1
+        return given

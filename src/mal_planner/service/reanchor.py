@@ -1,0 +1,56 @@
+"""A late plan re-anchored to where its aircraft are, and the test of whether that is still safe.
+
+A plan is made from tracks predicted to its start; when it arrives the aircraft are somewhat off it (the planning
+took longer than its lead, the prediction was off). Dropping it for that left aircraft without a new plan for a
+deviation far below the separation ("stale: 0.169 nm ... threshold 0.097 nm" at 3 nm). Instead each aircraft's
+plan is moved by its offset at the hand-out, the offset fading out linearly over :data:`REANCHOR_TURN_TIMES`: the
+aircraft starts on its plan and joins the planned path by the end of the fade (the guidance does the same with
+any offset, and so keeps the planned times). A plan is stale only when that is unsafe: an offset of more than half
+the separation (it was made for another picture), or two re-anchored paths closer than the minimum during the fade.
+"""
+
+from __future__ import annotations
+
+import itertools
+from collections.abc import Mapping
+from dataclasses import replace
+
+import numpy as np
+
+from mal_planner.scales import Scales
+from mal_planner.service.conflicts import Minima
+from mal_planner.trajectory import Reference, Trajectory
+
+REANCHOR_TURN_TIMES = 2.0
+"""The offset fades out over this (a terminal area 27 s, the thesis 15 s)."""
+MAX_OFFSET_SEPARATIONS = 0.5
+"""An aircraft further than this share of the separation from its plan's start makes the plan stale."""
+
+
+def reanchored(traj: Trajectory, offset: np.ndarray, at: float, fade_s: float) -> Trajectory:
+    """``traj`` moved by ``offset`` (nm) at its time ``at``, fading out linearly over ``fade_s`` (its controls kept:
+    the guidance flies the positions)."""
+    states = traj.states.copy()
+    w = np.clip(1.0 - (traj.t - at) / fade_s, 0.0, 1.0)
+    states[:, :3] += w[:, None] * np.asarray(offset, float)[None, :3]
+    meta = {**traj.meta, "reanchored_nm": float(np.linalg.norm(offset))}
+    return replace(traj, states=states, meta=meta)
+
+
+def unsafe_offsets(refs: Mapping[str, Reference], offsets: Mapping[str, np.ndarray], now: float, scales: Scales,
+                   minima: Minima) -> str | None:
+    """Why re-anchoring ``refs`` by ``offsets`` at ``now`` is unsafe (one line), or None (see the module
+    docstring)."""
+    fade_s = scales.seconds(REANCHOR_TURN_TIMES)
+    for cs, off in offsets.items():
+        d = float(np.linalg.norm(off))
+        if d > MAX_OFFSET_SEPARATIONS * minima.horizontal_nm:
+            return f"{cs} {d:.3f} nm from it when it starts (more than {MAX_OFFSET_SEPARATIONS:g} separations)"
+    times = now + np.linspace(0.0, fade_s, 17)
+    moved = {cs: ref.positions(times) + np.clip(1.0 - (times - now) / fade_s, 0.0, 1.0)[:, None]
+             * np.asarray(offsets.get(cs, np.zeros(3)))[None, :3] for cs, ref in refs.items()}
+    for a, b in itertools.combinations(sorted(moved), 2):
+        r = float(minima.ratio(moved[a], moved[b]).min())
+        if r < 1.0:
+            return f"{a} and {b} {r:.2f} minima apart on the plan moved to where they are"
+    return None
