@@ -47,7 +47,7 @@ def test_dds_names_fields_and_constants() -> None:
         "header", "callsign", "position", "flight_path_angle", "heading", "speed", "wake_category",
     ]  # fmt: skip
     plan = m.get_type("mal_msgs/msg/AircraftPlan")
-    assert (plan.STATUS_OPTIMAL, plan.STATUS_INITIAL_GUESS, plan.STATUS_FAILED) == (0, 1, 2)
+    assert (plan.STATUS_OPTIMAL, plan.STATUS_INITIAL_GUESS, plan.STATUS_FAILED, plan.STATUS_HOLD) == (0, 1, 2, 3)
     assert m.get_type("std_msgs/msg/Header").__idl_typename__ == "std_msgs::msg::dds_::Header_"
     srv = m.get_srv("mal_msgs/srv/PlanLanding")
     assert srv.WireRequest.__idl_typename__ == "mal_msgs::srv::dds_::PlanLanding_Request_"

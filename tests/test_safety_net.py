@@ -108,13 +108,13 @@ def test_a_late_plan_is_re_anchored_to_where_the_aircraft_are(first_plan: Closed
     (handout,) = service.finish(service.request("initial plan", 0.0, tracks=truth, lead=False), result, None, 0.0,
                                 2.0)
     assert isinstance(handout, Handout)
-    offset = np.array([0.0, 0.0, 0.03])
+    offset = np.array([0.0, -0.03, 0.0])
     for cs, tr in truth.items():
         state = tr.state.copy()
         state[:3] = service.book.flying[cs].position(5.0) + offset
         service.take_track(Track(cs, 5.0, state, tr.speed), "runway", "radar", 5.0, 5.0)
     late = service.request("test", 5.0, lead=False)
-    (again,) = service.finish(late, result, None, 5.0, 3.0)  # the same plan: every aircraft 0.03 nm above it
+    (again,) = service.finish(late, result, None, 5.0, 3.0)  # the same plan: every aircraft 0.03 nm south of it
     assert isinstance(again, Handout), again
     plans = {tr.callsign: tr for tr in result.landing.trajectories}
     for cs, ref in service.book.flying.items():

@@ -126,6 +126,7 @@ def test_the_node_and_the_closed_loop_decide_alike_on_the_same_radar_tracks(thes
                 node._on_state(planner_to_aircraft_state(node.types, tr.callsign, tr.stamp, tr.state, tr.speed),
                                "radar/tracks")
             loop.service.lose_tracks()
+            loop.service.instruct(t)  # the closed loop's order: holds and the safety net, then the policy
             node._tick()
             if (reason := loop.service.poll(t)) is not None:
                 decisions["closed loop"].append((t, reason))
@@ -136,6 +137,9 @@ def test_the_node_and_the_closed_loop_decide_alike_on_the_same_radar_tracks(thes
                 node.service.refused(t)
                 node.jobs.done(job, None)  # type: ignore[arg-type]
         assert decisions["node"] == decisions["closed loop"]
+        # X9 flies no plan: both hold it (issue 32), and the node publishes the hold as its path
+        assert loop.service.book.fallbacks["X9"].kind == node.service.book.fallbacks["X9"].kind == "hold"
+        assert "X9" in node.publisher.published
         reasons = [r for _, r in decisions["node"]]
         assert any("deviates" in r for r in reasons) and "X9 has no plan" in reasons, decisions
     finally:

@@ -42,6 +42,9 @@ class PlanResult:
     """The time limit ran out (the result is the best found until then)."""
     stopped: str | None = None
     """Where the time limit stopped a stage that had no result yet (one line), e.g. a fallback's initializer."""
+    unplanned: tuple[str, ...] = ()
+    """A partial plan (:attr:`PlanOptions.partial`): the aircraft left without a plan (``scenario`` holds only the
+    planned ones)."""
 
     @property
     def optimized(self) -> bool:
@@ -166,17 +169,32 @@ class Planner:
             initial = plan_initial(scenario, opts.initializer, seed=opts.seed, deadline=deadline)
         timings["initializer_s"] = time.perf_counter() - t0
         landing = None
+        unplanned: tuple[str, ...] = ()
         if opts.optimize:
             t1 = time.perf_counter()
             landing = self._optimize(scenario, initial, warm, start_time, deadline)
             initial = self._initial or initial
+            if opts.partial and landing is not None and not landing.success:
+                part = planned_prefix(landing)
+                if part is not None:
+                    names = {tr.callsign for tr in part.trajectories}
+                    unplanned = tuple(a.callsign for a in scenario.aircraft if a.callsign not in names)
+                    log.warning("partial plan: %d of %d aircraft planned (%s); %s left unplanned", len(names),
+                                len(scenario.aircraft), landing.status, ", ".join(unplanned))
+                    scenario = replace(scenario, aircraft=tuple(a for a in scenario.aircraft if a.callsign in names))
+                    landing, initial = part, initial.only(names)
             timings["optimizer_s"] = time.perf_counter() - t1
         report = None
-        if landing is not None and landing.success and opts.verify:
+        if landing is not None and landing.success and opts.verify and unplanned:  # as planned: no re-solve
+            report = verify(scenario, landing.trajectories, opts.tolerances)
+            log.info("verification of the partial plan: %s", "verified" if report.verified else
+                     "; ".join(report.reasons[:5]))
+        elif landing is not None and landing.success and opts.verify:
             landing, report = self._verify_and_refine(scenario, landing, timings, deadline)
         result = PlanResult(scenario, opts, initial, landing, report, timings, start_time,
-                            timed_out=deadline.expired() or self._stopped is not None, stopped=self._stopped)
-        if result.optimized and (report is None or report.verified):
+                            timed_out=deadline.expired() or self._stopped is not None, stopped=self._stopped,
+                            unplanned=unplanned)
+        if result.optimized and (report is None or report.verified) and not unplanned:
             self.last = result
         if warm:
             self._replan_failed = result.failure is not None
@@ -361,6 +379,23 @@ class Planner:
         timings["verification_s"] = time.perf_counter() - t2
         log.info("verification: %s", "verified" if report.verified else "; ".join(report.reasons[:5]))
         return landing, report
+
+
+def planned_prefix(landing: LandingResult) -> LandingResult | None:
+    """The plan of the aircraft a sequential solve planned before it stopped (the successful parts before the first
+    failed or missing one), as one successful result; None when there is none (or the solve was joint)."""
+    parts = []
+    for part in landing.parts or []:
+        if not part.success:
+            break
+        parts.append(part)
+    if not parts:
+        return None
+    merged = [{k: v for p in parts for k, v in getattr(p, key).items()}
+              for key in ("gate_times", "landing_times", "required_landing_times")]
+    return replace(landing, success=True, status=f"partial: {len(parts)} aircraft ({landing.status})",
+                   trajectories=[tr for p in parts for tr in p.trajectories], gate_times=merged[0],
+                   landing_times=merged[1], required_landing_times=merged[2], parts=parts)
 
 
 def _key(scenario: Scenario) -> tuple[str, ...]:

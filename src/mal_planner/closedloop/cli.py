@@ -192,7 +192,7 @@ def main(argv: list[str] | None = None) -> int:
     if not args.no_figure:
         from mal_planner.closedloop.figure import figure_closed_loop
 
-        figure_closed_loop(scenario, run.sim, out / "closed_loop.png")
+        figure_closed_loop(scenario, run.sim, out / "closed_loop.png", run.instructions)
     print("\n".join(summary_lines(metrics)))
     print(f"  outputs              {out} ({time.perf_counter() - t0:.1f} s)")
     return 0 if metrics.success else 1

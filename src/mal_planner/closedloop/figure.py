@@ -10,10 +10,28 @@ import numpy as np
 from mal_planner.closedloop.simulator import FlightSimulator
 from mal_planner.scenario import Scenario
 
+FALLBACK_STYLE = {"hold": ("#111111", ":"), "vector": ("#d62728", "-")}
+"""How the stretches flown on a service fallback are overdrawn: holds black dotted, the safety net's vectors red."""
 
-def figure_closed_loop(sc: Scenario, sim: FlightSimulator, path: Path) -> Path:
+
+def _fallback_stretches(instructions: list[tuple[float, str, str]], callsign: str, end: float
+                        ) -> list[tuple[str, float, float]]:
+    """(kind, from, to) of the stretches an aircraft flew on a hold or a vector."""
+    told = sorted((t, kind) for t, cs, kind in instructions if cs == callsign) + [(end, "end")]
+    return [(kind, t0, t1) for (t0, kind), (t1, _) in itertools.pairwise(told) if kind in FALLBACK_STYLE]
+
+
+def _kind_at(instructions: list[tuple[float, str, str]], callsign: str, t: float) -> str:
+    """What the aircraft was last told to fly at ``t`` ("plan" where nothing says otherwise)."""
+    told = [(ti, kind) for ti, cs, kind in instructions if cs == callsign and ti <= t]
+    return max(told)[1] if told else "plan"
+
+
+def figure_closed_loop(sc: Scenario, sim: FlightSimulator, path: Path,
+                       instructions: list[tuple[float, str, str]] | None = None) -> Path:
     """Left: plan view (flown tracks solid, every plan they were given dashed, a dot where a new plan began to be
-    flown, the obstacles' footprints); right: the distance of each pair over time, with the minimum."""
+    flown, the stretches flown on a hold or a vector overdrawn, the obstacles' footprints); right: the distance of
+    each pair over time (over 8 aircraft: of each aircraft to its nearest), with the minimum."""
     from mal_planner.figures.style import OBSTACLE_COLOR, RUNWAY_COLOR, WIDTH_IN, apply_style, color_map, save
 
     apply_style()
@@ -26,11 +44,18 @@ def figure_closed_loop(sc: Scenario, sim: FlightSimulator, path: Path) -> Path:
         box = ob.bounding_box()
         ax.add_patch(plt.Rectangle((box[0, 0], box[1, 0]), box[0, 1] - box[0, 0], box[1, 1] - box[1, 0],
                                    color=OBSTACLE_COLOR, alpha=0.25, lw=0))
+    told = instructions or []
     for ac in sim.aircraft:
         x = np.asarray(ac.states)
         c = colors[ac.callsign]
-        for ref in ac.plans:
-            ax.plot(ref.table[:, 0], ref.table[:, 1], "--", color=c, lw=0.7, alpha=0.6)
+        for ref, t_arr in zip(ac.plans, ac.plan_arrivals, strict=True):
+            if _kind_at(told, ac.callsign, t_arr) not in FALLBACK_STYLE:  # a hold is drawn far ahead: flown part only
+                ax.plot(ref.table[:, 0], ref.table[:, 1], "--", color=c, lw=0.7, alpha=0.6)
+        t_flown = np.asarray(ac.t)
+        for kind, t0, t1 in _fallback_stretches(told, ac.callsign, float(t_flown[-1])):
+            keep = (t_flown >= t0) & (t_flown <= t1)
+            color, style = FALLBACK_STYLE[kind]
+            ax.plot(x[keep, 0], x[keep, 1], style, color=color, lw=2.2, alpha=0.8)
         ax.plot(x[:, 0], x[:, 1], "-", color=c, lw=1.6, label=f"{ac.callsign} ({ac.status})")
         ax.plot(x[0, 0], x[0, 1], "o", color=c, ms=4)
         for t_arr in ac.plan_arrivals[1:]:
@@ -41,9 +66,14 @@ def figure_closed_loop(sc: Scenario, sim: FlightSimulator, path: Path) -> Path:
     ax.set_aspect("equal")
     ax.set_xlabel("x (nm)")
     ax.set_ylabel("y (nm)")
+    for kind, (color, style) in FALLBACK_STYLE.items():
+        if any(k == kind for _, _, k in told):
+            ax.plot([], [], style, color=color, lw=2.2, label=kind)
     ax.set_title("flown (solid) and planned (dashed); dots: a new plan flown")
     ax.legend(fontsize=7, loc="best")
     flown = sim.flown()
+    nearest = len(flown) > 8
+    closest: dict[str, tuple[np.ndarray, np.ndarray]] = {}
     for a, b in itertools.combinations(flown, 2):
         (ta, xa), (tb, xb) = flown[a], flown[b]
         t = ta[(ta >= max(ta[0], tb[0])) & (ta <= min(ta[-1], tb[-1]))]
@@ -51,14 +81,26 @@ def figure_closed_loop(sc: Scenario, sim: FlightSimulator, path: Path) -> Path:
             continue
         other = np.column_stack([np.interp(t, tb, xb[:, k]) for k in range(3)])
         mine = np.column_stack([np.interp(t, ta, xa[:, k]) for k in range(3)])
-        ax_sep.plot(t, np.linalg.norm(mine - other, axis=1), lw=1.0, label=f"{a}-{b}")
+        d = np.linalg.norm(mine - other, axis=1)
+        if not nearest:
+            ax_sep.plot(t, d, lw=1.0, label=f"{a}-{b}")
+            continue
+        for cs in (a, b):  # each aircraft's distance to its nearest, on its own samples
+            own_t = flown[cs][0]
+            dd = np.interp(own_t, t, d, left=np.inf, right=np.inf)
+            prev = closest.get(cs)
+            closest[cs] = (own_t, dd if prev is None else np.minimum(prev[1], dd))
+    for cs, (t, d) in closest.items():
+        finite = np.isfinite(d)
+        ax_sep.plot(t[finite], d[finite], lw=0.8, color=colors[cs])
     ax_sep.axhline(sc.separation_nm, color="#d62728", lw=1.0, ls="--", label="minimum")
     for t_new in sorted({t for ac in sim.aircraft for t in ac.plan_arrivals[1:]}):
         ax_sep.axvline(t_new, color="k", lw=0.4, alpha=0.3)
     ax_sep.set_xlabel("t (s)")
     ax_sep.set_ylabel("distance (nm)")
-    ax_sep.set_title("distance of each pair (grey: a new plan flown)")
-    if len(flown) <= 8:
+    ax_sep.set_title(("distance of each aircraft to its nearest" if nearest else "distance of each pair")
+                     + " (grey: a new plan flown)")
+    if not nearest:
         ax_sep.legend(fontsize=7, loc="best")
     fig.tight_layout()
     return save(fig, path)

@@ -47,6 +47,8 @@ PLAN_TIME_LIMIT_S = SERVICE_TIME_LIMIT_S
 """Wall-clock limit of one plan: the planner node's (``planning_time_limit_s``), the best result so far then."""
 OVERRUN_TURN_TIMES = 20.0
 """The run ends this long after the first plan's last landing if aircraft are still flying."""
+HOLD_OVERRUN_TURN_TIMES = 200.0
+"""... and at most this long after that, however late the plans of aircraft that held come (a terminal area 46 min)."""
 PROGRESS_PERIOD_S = 10.0
 """A progress line every this many wall-clock seconds of a run (simulated time, airborne, landed, replans)."""
 
@@ -281,6 +283,9 @@ class ClosedLoop:
                        for a in self.scenario.aircraft)
         return last + self.scales.seconds(OVERRUN_TURN_TIMES)
 
+    def _last_planned_landing(self) -> float:
+        return max((ref.end for ref in self.service.book.flying.values()), default=-math.inf)
+
     def run(self) -> ClosedLoopRun:
         opts = self.options
         wall0 = time.perf_counter()
@@ -288,7 +293,11 @@ class ClosedLoop:
         t_max = self._end_time(first)
         pending: _Pending | None = None
         next_radar, next_progress = opts.radar_period_s, wall0 + PROGRESS_PERIOD_S
+        hard_max = t_max + self.scales.seconds(HOLD_OVERRUN_TURN_TIMES)
         while not self.sim.done and self.sim.t < t_max:
+            if self.options.max_time_s is None:  # aircraft planned late (after holding) land later
+                t_max = min(max(t_max, self._last_planned_landing() + self.scales.seconds(OVERRUN_TURN_TIMES)),
+                            hard_max)
             starts = [r.start_time for r, _ in self.service.book.upcoming if r.start_time < next_radar]
             if pending is not None and pending.at <= min(starts, default=next_radar):
                 self.sim.advance(pending.at)

@@ -63,6 +63,10 @@ class PlanOptions:
     """Plan with the margins of flown plans (:func:`tracking_margins`), sized to ``tracking_threshold_nm``."""
     tracking_threshold_nm: float | None = None
     """The deviation the margins of flown plans allow for (None: :data:`DEVIATION_ACCURACIES` path accuracies)."""
+    partial: bool = False
+    """When a sequential plan runs out of time or fails after its first aircraft, the plan of those first aircraft
+    (verified on their own) is the result, the others unplanned (:attr:`PlanResult.unplanned`): the service hands it
+    out and holds the others (:mod:`mal_planner.service.fallback`). False: such a plan is a failure."""
 
 
 def build_plan_options(values: Mapping[str, Any], base: PlanOptions | None = None) -> PlanOptions:

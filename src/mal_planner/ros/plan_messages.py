@@ -20,7 +20,7 @@ from mal_planner.service.request import PlanRequest
 from mal_planner.trajectory import Trajectory
 
 # mal_msgs/AircraftPlan status constants and diagnostic_msgs/DiagnosticStatus levels
-OPTIMAL, INITIAL_GUESS, FAILED = 0, 1, 2
+OPTIMAL, INITIAL_GUESS, FAILED, HOLD = 0, 1, 2, 3
 DIAG_OK, DIAG_WARN, DIAG_ERROR = 0, 1, 2
 
 

@@ -8,6 +8,7 @@ aircraft; an aircraft a later plan leaves out keeps the path it flies; a withdra
 from __future__ import annotations
 
 import logging
+import math
 import threading
 from collections import Counter
 from collections.abc import Callable
@@ -16,10 +17,11 @@ from typing import Any
 from mal_planner.errors import Outcome
 from mal_planner.obstacles import Superquadric
 from mal_planner.pipeline import PlanResult
-from mal_planner.ros.convert import time_to_msg
+from mal_planner.ros.convert import path_msg, time_to_msg
 from mal_planner.ros.markers import marker_array
 from mal_planner.ros.plan_messages import (
     DIAG_WARN,
+    HOLD,
     diagnostic_status,
     empty_path,
     landing_plan_message,
@@ -30,7 +32,7 @@ from mal_planner.ros.plan_messages import (
 )
 from mal_planner.ros.transport import QOS_LATCHED
 from mal_planner.scenario import Scenario
-from mal_planner.service.book import Handout, Kept, Withdrawn
+from mal_planner.service.book import Handout, Instructed, Kept, Withdrawn
 from mal_planner.trajectory import Trajectory
 
 log = logging.getLogger("mal_planner.ros.planner")
@@ -96,6 +98,28 @@ class PlanPublisher:
             extra = {"left_out": "; ".join(f"{cs}: {why}" for cs, why in sorted(left.items()))} if left else None
             self.diagnostics(result, status_text(result), extra=extra)
             return plan_msg, [paths[cs] for cs in result.order if cs in paths]
+
+    def instructed(self, event: Instructed) -> None:
+        """The service's own instructions (holds, the safety net's vectors): each one's path on its aircraft's path
+        topic, and its entry in the latched LandingPlan marked STATUS_HOLD with the reason."""
+        with self._lock:
+            for fb in event.fallbacks:
+                ref = fb.reference
+                self.path_publisher(fb.callsign).publish(
+                    path_msg(self.types, fb.callsign, ref.start, ref.t - ref.start, ref.table[:, :5], None,
+                             self.frame_id))
+                self.published.add(fb.callsign)
+                log.warning("%s: %s (%s)", fb.callsign, fb.kind, fb.reason)
+            if self.plan_msg is None:
+                return
+            held = {fb.callsign: fb for fb in event.fallbacks}
+            entry = self.types.msg("mal_msgs/msg/AircraftPlan")
+            kept = [a for a in self.plan_msg.aircraft if a.callsign not in held]
+            self.plan_msg.aircraft = kept + [
+                entry(callsign=cs, order=0, gate_time=math.nan, landing_time=math.nan, status=HOLD, verified=False,
+                      reason=f"{fb.kind}: {fb.reason}", target_time=math.nan, delay=math.nan)
+                for cs, fb in sorted(held.items())]
+            self.plan_pub.publish(self.plan_msg)
 
     def kept(self, event: Kept, failure: str) -> None:
         """A replan failed: landing_plan says its plan is kept (the failure, since when)."""

@@ -33,7 +33,7 @@ from mal_planner.ros.plan_publisher import PlanPublisher
 from mal_planner.ros.plan_services import PlanServices
 from mal_planner.ros.transport import QOS_DEFAULT, QoSProfile, create_node
 from mal_planner.scenario import Scenario, ScenarioError, load_scenario
-from mal_planner.service.book import Event, Handout, Kept, Stale, Withdrawn
+from mal_planner.service.book import Event, Handout, Instructed, Kept, Stale, Withdrawn
 from mal_planner.service.core import PlanningService
 from mal_planner.service.request import PlanRequest
 from mal_planner.service.tracks import CALLSIGN_RE, Track
@@ -181,6 +181,7 @@ class PlannerNode:
         if now is None:
             return
         self._apply(self.service.lose_tracks() + self.service.due(now), now)
+        self._apply(self.service.instruct(now), now)
         if not self.jobs.pending and (reason := self.service.poll(now)) is not None:
             self.request(reason)
 
@@ -273,6 +274,8 @@ class PlannerNode:
                 self.publisher.withdraw(event, now,
                                         list(current.trajectories.values()) if current else [],
                                         current.result.start_time if current else 0.0, self.service.obstacles)
+            elif isinstance(event, Instructed):
+                self.publisher.instructed(event)
             elif isinstance(event, Stale):
                 log.warning("plan %s", event.reason)
         if events:

@@ -150,7 +150,7 @@ class PlanBook:
             offsets = self._offsets(trajectories, result.start_time, now)
             scales, minima = Scales.of(result.scenario), Minima.of(result.scenario)
             refs = {cs: Reference(tr.t + result.start_time, tr.states) for cs, tr in trajectories.items()}
-            why = unsafe_offsets(refs, offsets, now, scales, minima)
+            why = unsafe_offsets(refs, offsets, now, scales, minima, result.scenario.airspace)
             if why is not None:  # the aircraft keep what they fly; the policy asks again at once
                 self.last_arrival = -math.inf
                 events.append(Stale(request, f"stale: {why}, {now - request.plan_start:.1f} s after the tracks it "
@@ -160,6 +160,9 @@ class PlanBook:
             moved = {cs: reanchored(tr, offsets[cs], now - result.start_time, fade_s) if cs in offsets else tr
                      for cs, tr in trajectories.items()}
             events.append(self._hand_out(result, request, now, moved, lost))
+            unplanned = [cs for cs in result.unplanned if cs in self.flying]
+            if unplanned:  # their plans were made with the others' old ones: they hold instead (the guard)
+                events.append(self.withdraw(unplanned, "not in the partial plan handed out"))
         expiry = self.rules.kept_plan_expiry_s
         if self.kept_since is not None and expiry > 0 and now - self.kept_since >= expiry and self.flying:
             self.kept_since = None

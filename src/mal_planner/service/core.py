@@ -210,7 +210,7 @@ class PlanningService:
                 self.failures_in_a_row += 1
                 kept = self.book.failed(failure or "no result", now)
                 return [kept] if kept is not None else []
-            self.failures_in_a_row = 0
+            self.failures_in_a_row = self.failures_in_a_row + 1 if result.unplanned else 0  # partial: more time
             return self.book.arrive(request, result, now, set(self.intake.store.snapshot()))
 
     def due(self, now: float) -> list[Event]:

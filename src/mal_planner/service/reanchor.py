@@ -6,7 +6,8 @@ deviation far below the separation ("stale: 0.169 nm ... threshold 0.097 nm" at 
 plan is moved by its offset at the hand-out, the offset fading out linearly over :data:`REANCHOR_TURN_TIMES`: the
 aircraft starts on its plan and joins the planned path by the end of the fade (the guidance does the same with
 any offset, and so keeps the planned times). A plan is stale only when that is unsafe: an offset of more than half
-the separation (it was made for another picture), or two re-anchored paths closer than the minimum during the fade.
+the separation (it was made for another picture), a re-anchored path out of the airspace, or two closer than the
+minimum during the fade.
 """
 
 from __future__ import annotations
@@ -21,8 +22,8 @@ from mal_planner.scales import Scales
 from mal_planner.service.conflicts import Minima
 from mal_planner.trajectory import Reference, Trajectory
 
-REANCHOR_TURN_TIMES = 2.0
-"""The offset fades out over this (a terminal area 27 s, the thesis 15 s)."""
+REANCHOR_TURN_TIMES = 4.0
+"""The offset fades out over this (a terminal area 55 s, the thesis 30 s): gently, near the floor and the ceiling."""
 MAX_OFFSET_SEPARATIONS = 0.5
 """An aircraft further than this share of the separation from its plan's start makes the plan stale."""
 
@@ -38,7 +39,7 @@ def reanchored(traj: Trajectory, offset: np.ndarray, at: float, fade_s: float) -
 
 
 def unsafe_offsets(refs: Mapping[str, Reference], offsets: Mapping[str, np.ndarray], now: float, scales: Scales,
-                   minima: Minima) -> str | None:
+                   minima: Minima, airspace: np.ndarray) -> str | None:
     """Why re-anchoring ``refs`` by ``offsets`` at ``now`` is unsafe (one line), or None (see the module
     docstring)."""
     fade_s = scales.seconds(REANCHOR_TURN_TIMES)
@@ -49,6 +50,9 @@ def unsafe_offsets(refs: Mapping[str, Reference], offsets: Mapping[str, np.ndarr
     times = now + np.linspace(0.0, fade_s, 17)
     moved = {cs: ref.positions(times) + np.clip(1.0 - (times - now) / fade_s, 0.0, 1.0)[:, None]
              * np.asarray(offsets.get(cs, np.zeros(3)))[None, :3] for cs, ref in refs.items()}
+    for cs, path in moved.items():
+        if np.any(path < airspace[:, 0]) or np.any(path > airspace[:, 1]):
+            return f"{cs} would leave the airspace on the plan moved to where it is"
     for a, b in itertools.combinations(sorted(moved), 2):
         r = float(minima.ratio(moved[a], moved[b]).min())
         if r < 1.0:

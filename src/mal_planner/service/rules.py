@@ -91,12 +91,14 @@ class ServiceRules:
 
 def service_plan_options(options: PlanOptions, scenario: Scenario, rules: ServiceRules, *,
                          flown: bool) -> PlanOptions:
-    """The plan options the service plans with: aircraft established on final (:data:`ESTABLISHED_TURN_TIMES`) are
+    """The plan options the service plans with: partial plans handed out (the others hold); aircraft established on
+    final (:data:`ESTABLISHED_TURN_TIMES`) are
     left out of replans; with ``flown`` (the plans are flown by aircraft that the service watches) or the options'
     ``tracking_margins``, the margins of flown plans (:func:`~mal_planner.options.tracking_margins`) sized to the
     deviation threshold."""
     options = replace(options, landed_within_turn_times=max(options.landed_within_turn_times, ESTABLISHED_TURN_TIMES),
-                      tracking_margins=flown or options.tracking_margins, tracking_threshold_nm=rules.deviation_nm)
+                      tracking_margins=flown or options.tracking_margins, tracking_threshold_nm=rules.deviation_nm,
+                      partial=True)
     return resolve_flown(options, scenario)
 
 
