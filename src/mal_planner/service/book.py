@@ -21,7 +21,7 @@ import numpy as np
 from mal_planner.scales import Scales
 from mal_planner.service.conflicts import Minima
 from mal_planner.service.fallback import Fallback
-from mal_planner.service.reanchor import REANCHOR_TURN_TIMES, reanchored, unsafe_offsets
+from mal_planner.service.reanchor import fade_time, reanchored, unsafe_offsets
 from mal_planner.service.request import PlanRequest
 from mal_planner.service.rules import ServiceRules
 from mal_planner.service.tracks import Track
@@ -97,6 +97,8 @@ class PlanBook:
     kept_since: float | None = None
     search_s: float = math.inf
     """How far from the clock the closest point of an instruction is searched (the guidance's: a turn time)."""
+    follow_nm: float = math.inf
+    """An aircraft further than this from its instruction is not flying it: predicted straight on."""
     fallbacks: dict[str, Fallback] = field(default_factory=dict)
     """The hold or vector of each aircraft that flies no plan."""
     on_handout: Callable[[str, Reference | None, Reference, float], None] | None = None
@@ -144,20 +146,22 @@ class PlanBook:
         """Hand out the plans that start by ``now``, re-anchored (unless that is unsafe: stale); withdraw a kept plan
         past its expiry."""
         events: list[Event] = []
-        for result, request in [u for u in self.upcoming if u[0].start_time <= now]:
-            self.upcoming.remove((result, request))
+        for entry in [u for u in self.upcoming if u[0].start_time <= now]:
+            self.upcoming = [u for u in self.upcoming if u is not entry]  # by identity: results hold arrays
+            result, request = entry
             trajectories, lost = self._planned(result, request, tracked)
             offsets = self._offsets(trajectories, result.start_time, now)
             scales, minima = Scales.of(result.scenario), Minima.of(result.scenario)
             refs = {cs: Reference(tr.t + result.start_time, tr.states) for cs, tr in trajectories.items()}
-            why = unsafe_offsets(refs, offsets, now, scales, minima, result.scenario.airspace)
+            why = None if self.rules.deviation_nm <= 0 else unsafe_offsets(  # 0: the tracks do not follow plans
+                refs, offsets, now, scales, minima, result.scenario.airspace, self.rules.deviation_nm)
             if why is not None:  # the aircraft keep what they fly; the policy asks again at once
                 self.last_arrival = -math.inf
                 events.append(Stale(request, f"stale: {why}, {now - request.plan_start:.1f} s after the tracks it "
                                              "was made from; not handed out"))
                 continue
-            fade_s = scales.seconds(REANCHOR_TURN_TIMES)
-            moved = {cs: reanchored(tr, offsets[cs], now - result.start_time, fade_s) if cs in offsets else tr
+            moved = {cs: reanchored(tr, offsets[cs], now - result.start_time,
+                                    fade_time(scales, now, refs[cs].end)) if cs in offsets else tr
                      for cs, tr in trajectories.items()}
             events.append(self._hand_out(result, request, now, moved, lost))
             unplanned = [cs for cs in result.unplanned if cs in self.flying]
@@ -215,22 +219,29 @@ class PlanBook:
         return Withdrawn(gone, why)
 
     def predicted(self, tracks: Mapping[str, Track], at: float) -> dict[str, Track]:
-        """The tracks at time ``at``, along the instructions being flown as the guidance follows them (from the
-        instruction's point closest to the track, the along-track error kept, the offset there carried along, as
-        model predictive control does with a known delay); straight on where an aircraft flies none. A track already
-        stamped ``at`` is kept as it is."""
+        """The tracks at time ``at``, along the instructions being flown: a plan's state then, moved by the deviation
+        measured at the track's time (as model predictive control does with a known delay); a fallback (a hold's
+        circles) as the guidance follows it, from its point closest to the track (the along-track error kept), if
+        the aircraft flies it; straight on where an aircraft flies none. A track already stamped ``at`` is kept as
+        it is."""
         out = {}
         for cs, tr in tracks.items():
             ref = self.instruction(cs)
             if at == tr.stamp:
                 out[cs] = tr
-            elif ref is None or not ref.start <= tr.stamp or at > ref.end:
+                continue
+            if ref is None or not ref.start <= tr.stamp or at > ref.end:
                 out[cs] = Track(cs, at, tr.at(at), tr.speed, tr.wake)
-            else:
+                continue
+            s0 = tr.stamp
+            if cs not in self.flying:
                 s0 = ref.closest_time(tr.state[:3], tr.stamp, self.search_s)
-                now, then = ref.sample(s0), ref.sample(s0 + at - tr.stamp)
-                state = then[:5].copy()
-                state[:3] += tr.state[:3] - now[:3]
-                state[3:5] += tr.state[3:5] - now[3:5]
-                out[cs] = Track(cs, at, state, tr.speed, tr.wake)
+            now, then = ref.sample(s0), ref.sample(s0 + at - tr.stamp)
+            if cs not in self.flying and np.linalg.norm(tr.state[:3] - now[:3]) > self.follow_nm:
+                out[cs] = Track(cs, at, tr.at(at), tr.speed, tr.wake)  # not flying it
+                continue
+            state = then[:5].copy()
+            state[:3] += tr.state[:3] - now[:3]
+            state[3:5] += tr.state[3:5] - now[3:5]
+            out[cs] = Track(cs, at, state, tr.speed, tr.wake)
         return out

@@ -61,7 +61,8 @@ class PlanningService:
         self.wind: tuple[float, float] = scenario.wind
         self._given_options = options or PlanOptions()
         self.options = service_plan_options(self._given_options, scenario, rules, flown=flown)
-        self.book = PlanBook(rules, self._estimate, search_s=Scales.of(scenario).time_s)
+        self.book = PlanBook(rules, self._estimate, search_s=Scales.of(scenario).time_s,
+                             follow_nm=0.5 * scenario.separation_nm)
         self.intake = TrackIntake(scenario, rules, plan_of=self.book.instruction)
         self.guard = Guard.of(scenario, rules.deviation_nm)
         self.book.on_handout = self.intake.filter.replanned
@@ -175,10 +176,11 @@ class PlanningService:
 
     def instruct(self, now: float) -> list[Event]:
         """After a radar scan: a hold for each aircraft without a plan, the safety net's vectors where the planner
-        has no plan in time (:mod:`mal_planner.service.guard`)."""
+        has no plan in time (:mod:`mal_planner.service.guard`). Not with a deviation threshold of 0 (radar tracks
+        that do not follow the plans, e.g. a recording replayed)."""
         with self._lock:
             tracks = self.intake.estimates()
-            if not tracks or not self.planned:
+            if not tracks or not self.planned or self.rules.deviation_nm <= 0:  # 0: tracks that follow no plan
                 return []
             starts = [r.start_time for r, _ in self.book.upcoming]
             if self.in_flight is not None:

@@ -14,6 +14,8 @@ from collections import Counter
 from collections.abc import Mapping
 from dataclasses import dataclass, field
 
+import numpy as np
+
 from mal_planner.scenario import Scenario
 from mal_planner.service.book import Instructed, PlanBook
 from mal_planner.service.conflicts import POSITION_TIME_PER_TURN_TIME, Conflict, Picture, conflicts, picture
@@ -107,7 +109,8 @@ class Guard:
         vectors = resolution_vectors(tracks, dv, urgent, self.scenario, self.rules, now, headings)
         given = []
         for fb in vectors:
-            if not fits_airspace(self.scenario, fb.reference.positions(pic.times), self.rules.edge_nm):
+            whole = fb.reference.positions(np.arange(now, fb.reference.end + self.rules.step_s, self.rules.step_s))
+            if not fits_airspace(self.scenario, whole, self.rules.edge_nm):
                 continue  # into a no-fly zone or out of the airspace: it holds instead (below)
             book.give(fb, now)
             pic.paths[fb.callsign] = fb.reference.positions(pic.times)

@@ -6,8 +6,8 @@ deviation far below the separation ("stale: 0.169 nm ... threshold 0.097 nm" at 
 plan is moved by its offset at the hand-out, the offset fading out linearly over :data:`REANCHOR_TURN_TIMES`: the
 aircraft starts on its plan and joins the planned path by the end of the fade (the guidance does the same with
 any offset, and so keeps the planned times). A plan is stale only when that is unsafe: an offset of more than half
-the separation (it was made for another picture), a re-anchored path out of the airspace, or two closer than the
-minimum during the fade.
+the separation or the deviation threshold (it was made for another picture), a re-anchored path out of the
+airspace, or two closer than the minimum during the fade.
 """
 
 from __future__ import annotations
@@ -28,6 +28,12 @@ MAX_OFFSET_SEPARATIONS = 0.5
 """An aircraft further than this share of the separation from its plan's start makes the plan stale."""
 
 
+def fade_time(scales: Scales, now: float, end: float) -> float:
+    """How long an offset fades: :data:`REANCHOR_TURN_TIMES`, at most half the time left to the plan's end (the
+    runway: an aircraft is on the centreline and the glide path well before it), at least a second."""
+    return max(min(scales.seconds(REANCHOR_TURN_TIMES), 0.5 * (end - now)), 1.0)
+
+
 def reanchored(traj: Trajectory, offset: np.ndarray, at: float, fade_s: float) -> Trajectory:
     """``traj`` moved by ``offset`` (nm) at its time ``at``, fading out linearly over ``fade_s`` (its controls kept:
     the guidance flies the positions)."""
@@ -39,22 +45,30 @@ def reanchored(traj: Trajectory, offset: np.ndarray, at: float, fade_s: float) -
 
 
 def unsafe_offsets(refs: Mapping[str, Reference], offsets: Mapping[str, np.ndarray], now: float, scales: Scales,
-                   minima: Minima, airspace: np.ndarray) -> str | None:
+                   minima: Minima, airspace: np.ndarray, deviation_nm: float = 0.0) -> str | None:
     """Why re-anchoring ``refs`` by ``offsets`` at ``now`` is unsafe (one line), or None (see the module
-    docstring)."""
-    fade_s = scales.seconds(REANCHOR_TURN_TIMES)
+    docstring); ``deviation_nm``: the service's deviation threshold, the largest offset where it is larger than half
+    the separation (the margins of flown plans are sized to it)."""
+    limit = max(MAX_OFFSET_SEPARATIONS * minima.horizontal_nm, deviation_nm)
     for cs, off in offsets.items():
         d = float(np.linalg.norm(off))
-        if d > MAX_OFFSET_SEPARATIONS * minima.horizontal_nm:
-            return f"{cs} {d:.3f} nm from it when it starts (more than {MAX_OFFSET_SEPARATIONS:g} separations)"
-    times = now + np.linspace(0.0, fade_s, 17)
-    moved = {cs: ref.positions(times) + np.clip(1.0 - (times - now) / fade_s, 0.0, 1.0)[:, None]
-             * np.asarray(offsets.get(cs, np.zeros(3)))[None, :3] for cs, ref in refs.items()}
-    for cs, path in moved.items():
-        if np.any(path < airspace[:, 0]) or np.any(path > airspace[:, 1]):
+        if d > limit:
+            return f"{cs} {d:.3f} nm from it when it starts (more than {limit:.3f} nm)"
+    times = now + np.linspace(0.0, scales.seconds(REANCHOR_TURN_TIMES), 33)
+    moved, live = {}, {}
+    for cs, ref in refs.items():
+        w = np.clip(1.0 - (times - now) / fade_time(scales, now, ref.end), 0.0, 1.0)
+        moved[cs] = ref.positions(times) + w[:, None] * np.asarray(offsets.get(cs, np.zeros(3)))[None, :3]
+        live[cs] = times <= ref.end  # past its end an aircraft has landed
+    for cs, path in moved.items():  # no further out than the aircraft is now (a track may lie on the edge)
+        out = np.max(np.maximum(airspace[:, 0] - path, path - airspace[:, 1]), axis=1)
+        if np.any(out[1:][live[cs][1:]] > max(out[0], 0.0)):
             return f"{cs} would leave the airspace on the plan moved to where it is"
     for a, b in itertools.combinations(sorted(moved), 2):
-        r = float(minima.ratio(moved[a], moved[b]).min())
+        both = live[a] & live[b]
+        if not both.any():
+            continue
+        r = float(minima.ratio(moved[a][both], moved[b][both]).min())
         if r < 1.0:
             return f"{a} and {b} {r:.2f} minima apart on the plan moved to where they are"
     return None

@@ -45,8 +45,9 @@ class ServiceRules:
     """When the service plans, from what, and what it does with the result (nm, s on the radar's clock)."""
 
     deviation_nm: float = 0.0
-    """Replan when an aircraft's track strays this far from the plan it flies; a plan that finds an aircraft this
-    far from it when it starts is stale (not handed out). 0: neither."""
+    """Replan when an aircraft's track strays this far from the plan it flies; a plan is stale (not handed out) when
+    re-anchoring it to where the aircraft are is unsafe (:mod:`mal_planner.service.reanchor`). 0: neither (tracks
+    that do not follow the plans, e.g. a recording replayed)."""
     min_interval_s: float = 0.0
     """No replan for a deviation, a new aircraft or the period sooner than this after the last plan arrived (a
     failed one too); nor a deviation check within this of an aircraft's plan's end (a new plan would come too
