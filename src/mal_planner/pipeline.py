@@ -12,6 +12,7 @@ from mal_planner.errors import Failure, InvalidInput, Outcome, PlanningError, Pl
 from mal_planner.initializer.planners import known_specs
 from mal_planner.initializer.sequencer import InitialPlan, Sequencer, plan_initial
 from mal_planner.landing import LandingOptions, LandingResult
+from mal_planner.landing.aircraft_plans import planned_prefix
 from mal_planner.landing.guess import AircraftGuess, guess_from_initial_plan
 from mal_planner.landing.sequential import SequentialOptimizer
 from mal_planner.landing.solve import LandingOptimizer, make_guesses, shift_guesses, uses_sequential
@@ -175,14 +176,7 @@ class Planner:
             landing = self._optimize(scenario, initial, warm, start_time, deadline)
             initial = self._initial or initial
             if opts.partial and landing is not None and not landing.success:
-                part = planned_prefix(landing)
-                if part is not None:
-                    names = {tr.callsign for tr in part.trajectories}
-                    unplanned = tuple(a.callsign for a in scenario.aircraft if a.callsign not in names)
-                    log.warning("partial plan: %d of %d aircraft planned (%s); %s left unplanned", len(names),
-                                len(scenario.aircraft), landing.status, ", ".join(unplanned))
-                    scenario = replace(scenario, aircraft=tuple(a for a in scenario.aircraft if a.callsign in names))
-                    landing, initial = part, initial.only(names)
+                scenario, landing, initial, unplanned = _partial(scenario, landing, initial)
             timings["optimizer_s"] = time.perf_counter() - t1
         report = None
         if landing is not None and landing.success and opts.verify and unplanned:  # as planned: no re-solve
@@ -381,21 +375,19 @@ class Planner:
         return landing, report
 
 
-def planned_prefix(landing: LandingResult) -> LandingResult | None:
-    """The plan of the aircraft a sequential solve planned before it stopped (the successful parts before the first
-    failed or missing one), as one successful result; None when there is none (or the solve was joint)."""
-    parts = []
-    for part in landing.parts or []:
-        if not part.success:
-            break
-        parts.append(part)
-    if not parts:
-        return None
-    merged = [{k: v for p in parts for k, v in getattr(p, key).items()}
-              for key in ("gate_times", "landing_times", "required_landing_times")]
-    return replace(landing, success=True, status=f"partial: {len(parts)} aircraft ({landing.status})",
-                   trajectories=[tr for p in parts for tr in p.trajectories], gate_times=merged[0],
-                   landing_times=merged[1], required_landing_times=merged[2], parts=parts)
+def _partial(scenario: Scenario, landing: LandingResult, initial: InitialPlan
+             ) -> tuple[Scenario, LandingResult, InitialPlan, tuple[str, ...]]:
+    """A failed sequential plan cut to the aircraft it planned (:attr:`PlanOptions.partial`), with those left
+    unplanned; as it was (none unplanned) when it planned none."""
+    part = planned_prefix(landing)
+    if part is None:
+        return scenario, landing, initial, ()
+    names = {tr.callsign for tr in part.trajectories}
+    unplanned = tuple(a.callsign for a in scenario.aircraft if a.callsign not in names)
+    log.warning("partial plan: %d of %d aircraft planned (%s); %s left unplanned", len(names),
+                len(scenario.aircraft), landing.status, ", ".join(unplanned))
+    kept = replace(scenario, aircraft=tuple(a for a in scenario.aircraft if a.callsign in names))
+    return kept, part, initial.only(names), unplanned
 
 
 def _key(scenario: Scenario) -> tuple[str, ...]:

@@ -32,7 +32,7 @@ def figure_closed_loop(sc: Scenario, sim: FlightSimulator, path: Path,
     """Left: plan view (flown tracks solid, every plan they were given dashed, a dot where a new plan began to be
     flown, the stretches flown on a hold or a vector overdrawn, the obstacles' footprints); right: the distance of
     each pair over time (over 8 aircraft: of each aircraft to its nearest), with the minimum."""
-    from mal_planner.figures.style import OBSTACLE_COLOR, RUNWAY_COLOR, WIDTH_IN, apply_style, color_map, save
+    from mal_planner.figures.style import WIDTH_IN, apply_style, color_map, save
 
     apply_style()
     import matplotlib.pyplot as plt
@@ -40,11 +40,18 @@ def figure_closed_loop(sc: Scenario, sim: FlightSimulator, path: Path,
     colors = color_map([ac.callsign for ac in sim.aircraft])
     fig, (ax, ax_sep) = plt.subplots(1, 2, figsize=(WIDTH_IN * 1.6, WIDTH_IN * 0.7),
                                      gridspec_kw={"width_ratios": [1.2, 1.0]})
+    _plan_view(ax, sc, sim, colors, instructions or [])
+    _separations(ax_sep, sc, sim, colors)
+    fig.tight_layout()
+    return save(fig, path)
+
+
+def _plan_view(ax, sc: Scenario, sim: FlightSimulator, colors: dict, told: list[tuple[float, str, str]]) -> None:
+    from mal_planner.figures.style import OBSTACLE_COLOR, RUNWAY_COLOR
+
     for ob in sc.obstacles:
         box = ob.bounding_box()
-        ax.add_patch(plt.Rectangle((box[0, 0], box[1, 0]), box[0, 1] - box[0, 0], box[1, 1] - box[1, 0],
-                                   color=OBSTACLE_COLOR, alpha=0.25, lw=0))
-    told = instructions or []
+        ax.add_patch(_rectangle(box, OBSTACLE_COLOR))
     for ac in sim.aircraft:
         x = np.asarray(ac.states)
         c = colors[ac.callsign]
@@ -70,7 +77,17 @@ def figure_closed_loop(sc: Scenario, sim: FlightSimulator, path: Path,
         if any(k == kind for _, _, k in told):
             ax.plot([], [], style, color=color, lw=2.2, label=kind)
     ax.set_title("flown (solid) and planned (dashed); dots: a new plan flown")
-    ax.legend(fontsize=7, loc="best")
+    ax.legend(fontsize=6 if len(sim.aircraft) > 8 else 7, loc="best", ncol=2 if len(sim.aircraft) > 8 else 1)
+
+
+def _rectangle(box: np.ndarray, color: str):
+    import matplotlib.pyplot as plt
+
+    return plt.Rectangle((box[0, 0], box[1, 0]), box[0, 1] - box[0, 0], box[1, 1] - box[1, 0], color=color,
+                         alpha=0.25, lw=0)
+
+
+def _separations(ax_sep, sc: Scenario, sim: FlightSimulator, colors: dict) -> None:
     flown = sim.flown()
     nearest = len(flown) > 8
     closest: dict[str, tuple[np.ndarray, np.ndarray]] = {}
@@ -80,8 +97,7 @@ def figure_closed_loop(sc: Scenario, sim: FlightSimulator, path: Path,
         if len(t) < 2:
             continue
         other = np.column_stack([np.interp(t, tb, xb[:, k]) for k in range(3)])
-        mine = np.column_stack([np.interp(t, ta, xa[:, k]) for k in range(3)])
-        d = np.linalg.norm(mine - other, axis=1)
+        d = np.linalg.norm(np.column_stack([np.interp(t, ta, xa[:, k]) for k in range(3)]) - other, axis=1)
         if not nearest:
             ax_sep.plot(t, d, lw=1.0, label=f"{a}-{b}")
             continue
@@ -102,5 +118,3 @@ def figure_closed_loop(sc: Scenario, sim: FlightSimulator, path: Path,
                      + " (grey: a new plan flown)")
     if not nearest:
         ax_sep.legend(fontsize=7, loc="best")
-    fig.tight_layout()
-    return save(fig, path)

@@ -4,6 +4,7 @@ aircraft combined into one result."""
 from __future__ import annotations
 
 from collections.abc import Sequence
+from dataclasses import replace
 
 import numpy as np
 
@@ -76,3 +77,20 @@ def combine(parts: list[LandingResult], n: int, layout, wall: float, solved: lis
         solution=parts[-1].solution if parts else None,  # type: ignore[arg-type]
         phase_names=[f"{p.trajectories[0].callsign}:{name}" for p in parts for name in p.phase_names],
         required_landing_times=merged["required_landing_times"], parts=parts, strategy="sequential")
+
+
+def planned_prefix(landing: LandingResult) -> LandingResult | None:
+    """The plan of the aircraft a sequential solve planned before it stopped (the successful parts before the first
+    failed or missing one), as one successful result; None when there is none (or the solve was joint)."""
+    parts = []
+    for part in landing.parts or []:
+        if not part.success:
+            break
+        parts.append(part)
+    if not parts:
+        return None
+    merged = [{k: v for p in parts for k, v in getattr(p, key).items()}
+              for key in ("gate_times", "landing_times", "required_landing_times")]
+    return replace(landing, success=True, status=f"partial: {len(parts)} aircraft ({landing.status})",
+                   trajectories=[tr for p in parts for tr in p.trajectories], gate_times=merged[0],
+                   landing_times=merged[1], required_landing_times=merged[2], parts=parts)
