@@ -6,8 +6,8 @@ deviation far below the separation ("stale: 0.169 nm ... threshold 0.097 nm" at 
 plan is moved by its offset at the hand-out, the offset fading out linearly over :data:`REANCHOR_TURN_TIMES`: the
 aircraft starts on its plan and joins the planned path by the end of the fade (the guidance does the same with
 any offset, and so keeps the planned times). A plan is stale only when that is unsafe: an offset of more than half
-the separation or the deviation threshold (it was made for another picture), a re-anchored path out of the
-airspace, or two closer than the minimum during the fade.
+the separation or the deviation threshold (it was made for another picture), a re-anchored path closer than a
+path accuracy to the airspace's edge (unless the aircraft is already), or two closer than the minimum during the fade.
 """
 
 from __future__ import annotations
@@ -56,13 +56,19 @@ def unsafe_offsets(refs: Mapping[str, Reference], offsets: Mapping[str, np.ndarr
             return f"{cs} {d:.3f} nm from it when it starts (more than {limit:.3f} nm)"
     times = now + np.linspace(0.0, scales.seconds(REANCHOR_TURN_TIMES), 33)
     moved, live = {}, {}
+
+    def outside(path: np.ndarray) -> np.ndarray:
+        return np.max(np.maximum(airspace[:, 0] - path, path - airspace[:, 1]), axis=1)
+
+    inside = -scales.accuracy_nm  # a path accuracy inside (a flown path strays about that far from its plan)
     for cs, ref in refs.items():
         w = np.clip(1.0 - (times - now) / fade_time(scales, now, ref.end), 0.0, 1.0)
-        moved[cs] = ref.positions(times) + w[:, None] * np.asarray(offsets.get(cs, np.zeros(3)))[None, :3]
+        planned = ref.positions(times)
+        moved[cs] = planned + w[:, None] * np.asarray(offsets.get(cs, np.zeros(3)))[None, :3]
         live[cs] = times <= ref.end  # past its end an aircraft has landed
-    for cs, path in moved.items():  # no further out than the aircraft is now (a track may lie on the edge)
-        out = np.max(np.maximum(airspace[:, 0] - path, path - airspace[:, 1]), axis=1)
-        if np.any(out[1:][live[cs][1:]] > max(out[0], 0.0)):
+        out = outside(moved[cs])  # nearer the edge than a path accuracy only where the plan or the aircraft is
+        bound = np.maximum(np.maximum(outside(planned), out[0]), inside)
+        if np.any((out > bound + 1e-12)[1:] & live[cs][1:]):
             return f"{cs} would leave the airspace on the plan moved to where it is"
     for a, b in itertools.combinations(sorted(moved), 2):
         both = live[a] & live[b]
