@@ -18,9 +18,16 @@ import numpy as np
 
 from mal_planner.scenario import Scenario
 from mal_planner.service.book import Instructed, PlanBook
-from mal_planner.service.conflicts import POSITION_TIME_PER_TURN_TIME, Conflict, Picture, conflicts, picture
+from mal_planner.service.conflicts import (
+    POSITION_TIME_PER_TURN_TIME,
+    Conflict,
+    Picture,
+    closest_to_others,
+    conflicts,
+    picture,
+)
 from mal_planner.service.fallback import Fallback, FallbackRules, choose_hold, fits_airspace
-from mal_planner.service.safety_net import displacements, resolution_vectors
+from mal_planner.service.safety_net import TRY_TURNS_DEG, displacements, resolution_vectors, turned
 from mal_planner.service.tracks import Track
 
 log = logging.getLogger("mal_planner.service")
@@ -74,6 +81,26 @@ class Guard:
             given.append(self._hold(tracks[cs], book, pic, now, "no plan" if fb is None else f"its {fb.kind} ends"))
         return given
 
+    def _feasible_vector(self, fb: Fallback, track: Track, pic: Picture, now: float) -> Fallback | None:
+        """The MVP vector, or the first heading turned from it (:data:`TRY_TURNS_DEG`) that stays inside the airspace
+        and clear of the no-fly zones and keeps the minimum from the others' predicted paths; else the one that fits
+        with the most separation; None when none fits."""
+        others = Picture(pic.times, {k: v for k, v in pic.paths.items() if k != fb.callsign})
+        best: tuple[float, Fallback] | None = None
+        for turn in TRY_TURNS_DEG:
+            cand = turned(fb, track, self.rules, turn, now)
+            ref = cand.reference
+            if not fits_airspace(self.scenario, ref.positions(np.arange(now, ref.end + self.rules.step_s,
+                                                                        self.rules.step_s)), self.rules.edge_nm):
+                continue
+            clearance, _ = closest_to_others(ref.positions(pic.times), others, self.rules.minima, fb.callsign)
+            cand = Fallback(cand.callsign, cand.kind, ref, now, cand.reason, clearance)
+            if clearance >= 1.0 + ALERT_MARGIN_SHARE * self.rules.margin:
+                return cand
+            if best is None or clearance > best[0]:
+                best = (clearance, cand)
+        return None if best is None else best[1]
+
     def _hold(self, track: Track, book: PlanBook, pic: Picture, now: float, why: str) -> Fallback:
         """The hold of ``track``'s aircraft against everyone else in ``pic`` (which it then joins), given."""
         cs = track.callsign
@@ -109,17 +136,15 @@ class Guard:
         vectors = resolution_vectors(tracks, dv, urgent, self.scenario, self.rules, now, headings)
         given = []
         for fb in vectors:
-            whole = fb.reference.positions(np.arange(now, fb.reference.end + self.rules.step_s, self.rules.step_s))
-            if not fits_airspace(self.scenario, whole, self.rules.edge_nm):
-                continue  # into a no-fly zone or out of the airspace: it holds instead (below)
-            book.give(fb, now)
-            pic.paths[fb.callsign] = fb.reference.positions(pic.times)
+            chosen = self._feasible_vector(fb, tracks[fb.callsign], pic, now)
+            if chosen is None:  # every heading leaves the airspace or enters a no-fly zone: it holds
+                given.append(self._hold(tracks[fb.callsign], book, pic, now, "safety net: no vector inside the "
+                                        "airspace and clear of the no-fly zones"))
+                continue
+            book.give(chosen, now)
+            pic.paths[chosen.callsign] = chosen.reference.positions(pic.times)
             self.counts["vectors"] += 1
-            log.info("t=%.1f s: %s vectored by the safety net (%s)", now, fb.callsign, fb.reason)
-            given.append(fb)
-        for fb in vectors:
-            if fb not in given:
-                given.append(self._hold(tracks[fb.callsign], book, pic, now, "safety net: a vector would leave the "
-                                        "airspace or enter a no-fly zone"))
+            log.info("t=%.1f s: %s vectored by the safety net (%s)", now, chosen.callsign, chosen.reason)
+            given.append(chosen)
         self.counts["uses"] += 1
         return given

@@ -95,3 +95,17 @@ def resolution_vectors(tracks: Mapping[str, Track], dv: Mapping[str, np.ndarray]
         note = f"clear of {', '.join(sorted(set(others)))}" + ("" if inside else " (leaves the airspace)")
         out.append(Fallback(cs, "vector", ref, now, f"safety net: {note}", math.nan))
     return out
+
+
+TRY_TURNS_DEG = (0.0, 30.0, -30.0, 60.0, -60.0, 90.0, -90.0, 135.0, -135.0)
+"""Headings tried from the MVP heading when it leaves the airspace, enters a no-fly zone or stays in conflict."""
+
+
+def turned(fb: Fallback, track: Track, rules: FallbackRules, turn_deg: float, now: float) -> Fallback:
+    """``fb``'s vector with its heading turned by ``turn_deg`` (the same level and length)."""
+    ref = fb.reference
+    heading = float(ref.table[-1, 4]) + math.radians(turn_deg)
+    out = vector(track.state, track.speed, rules.radius(), heading, level=float(ref.table[-1, 2]), t0=now,
+                 duration_s=ref.end - now, step_s=rules.step_s)
+    return Fallback(fb.callsign, "vector", out, now, fb.reason if turn_deg == 0.0 else
+                    f"{fb.reason}, turned {turn_deg:+.0f} deg", fb.clearance)
