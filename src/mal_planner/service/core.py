@@ -183,9 +183,11 @@ class PlanningService:
             if not tracks or not self.planned or self.rules.deviation_nm <= 0:  # 0: tracks that follow no plan
                 return []
             starts = [r.start_time for r, _ in self.book.upcoming]
+            coming = {a.callsign for r, _ in self.book.upcoming for a in r.scenario.aircraft}
             if self.in_flight is not None:
                 starts.append(self.in_flight.plan_start)
-            return list(self.guard.instruct(tracks, self.book, now, min(starts, default=None)))
+                coming |= {a.callsign for a in self.in_flight.inputs.scenario.aircraft}
+            return list(self.guard.instruct(tracks, self.book, now, min(starts, default=None), coming))
 
     def refused(self, now: float, latency_s: float | None = None) -> None:
         """A radar request was refused (:meth:`request` said why), or its planning broke down, at ``now``,

@@ -63,20 +63,23 @@ class Guard:
         return picture(tracks, book.instructions(), self.rules.look_ahead(now), search_s=scales.time_s,
                        settle_s=scales.seconds(POSITION_TIME_PER_TURN_TIME))
 
-    def instruct(self, tracks: Mapping[str, Track], book: PlanBook, now: float, deliver_at: float | None
-                 ) -> list[Instructed]:
-        """Holds and resolutions at ``now``; ``deliver_at``: when the next plan is expected (None: none coming)."""
+    def instruct(self, tracks: Mapping[str, Track], book: PlanBook, now: float, deliver_at: float | None,
+                 coming: frozenset[str] | set[str] = frozenset()) -> list[Instructed]:
+        """Holds and resolutions at ``now``; ``deliver_at``: when the next plan is expected (None: none coming);
+        ``coming``: the aircraft of the plan under way or waiting (one without a hold yet flies on as the plan
+        was made for it, straight; the net still watches it)."""
         pic = self._picture(tracks, book, now)
-        given = self._holds(tracks, book, pic, now)
+        given = self._holds(tracks, book, pic, now, coming)
         given += self._net(tracks, book, pic, now, deliver_at)
         return [Instructed(tuple(given))] if given else []
 
-    def _holds(self, tracks: Mapping[str, Track], book: PlanBook, pic: Picture, now: float) -> list[Fallback]:
+    def _holds(self, tracks: Mapping[str, Track], book: PlanBook, pic: Picture, now: float,
+               coming: frozenset[str] | set[str]) -> list[Fallback]:
         renew_by = now + self.rules.scales.time_s
         given = []
         for cs in sorted(tracks):
             fb = book.fallbacks.get(cs)
-            if cs in book.flying or (fb is not None and fb.reference.end > renew_by):
+            if cs in book.flying or (fb is not None and fb.reference.end > renew_by) or (fb is None and cs in coming):
                 continue
             given.append(self._hold(tracks[cs], book, pic, now, "no plan" if fb is None else f"its {fb.kind} ends"))
         return given
