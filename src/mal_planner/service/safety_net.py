@@ -15,7 +15,6 @@ from __future__ import annotations
 
 import math
 from collections.abc import Mapping
-from dataclasses import dataclass
 
 import numpy as np
 
@@ -27,15 +26,6 @@ from mal_planner.service.tracks import Track
 
 VECTOR_TURN_TIMES = 4.0
 """A vector lasts this long past the predicted closest point (a terminal area 55 s), then the aircraft holds."""
-
-
-@dataclass(frozen=True)
-class Alert:
-    """A predicted conflict, and whether the net resolved it (or why not)."""
-
-    conflict: Conflict
-    resolved: bool
-    note: str
 
 
 def displacements(conflicts: list[Conflict], pic: Picture, rules: FallbackRules, now: float,
