@@ -38,6 +38,8 @@ CLOCK_TYPE = "rosgraph_msgs/msg/Clock"
 
 PROGRESS_PERIOD_S = 10.0
 """A progress line every this many wall-clock seconds: simulated time, aircraft airborne and landed."""
+FIRST_PATHS_WAIT_S = 2.0
+"""Wall-clock seconds the simulated time still stands after the first path for the others of the first plan."""
 
 
 class Progress:
@@ -163,7 +165,7 @@ class SimulatorNode:
 
     def _on_timer(self) -> None:
         args, sim = self.args, self.sim
-        if args.wait_for_plan > 0 and not self.plans and time.monotonic() < self.hold_until:
+        if args.wait_for_plan > 0 and self._waiting():
             self.held += 1  # the same tracks again (duplicates to the planner): the traffic appears, time stands still
         else:
             self.ticks += 1
@@ -182,6 +184,17 @@ class SimulatorNode:
         self.progress.tick(sim.sim)
         if (args.until_landed and sim.sim.done) or (args.duration and sim.sim.t >= args.duration):
             self.stop.set()
+
+    def _waiting(self) -> bool:
+        """Time stands still until every aircraft has its first path (the first plan's paths come one by one, on
+        topics of their own: an aircraft whose path came a scan late would fly on without it), at most
+        :data:`FIRST_PATHS_WAIT_S` after the first one and ``--wait-for-plan`` in all."""
+        now = time.monotonic()
+        if now >= self.hold_until:
+            return False
+        if self.first_plan_s is None:
+            return True
+        return len(self.plans) < len(self.sim.tracks) and now < self.started + self.first_plan_s + FIRST_PATHS_WAIT_S
 
     def _on_path(self, callsign: str) -> Any:
         def callback(msg: Any) -> None:

@@ -182,6 +182,8 @@ class PlanningService:
             tracks = self.intake.estimates()
             if not tracks or not self.planned or self.rules.deviation_nm <= 0:  # 0: tracks that follow no plan
                 return []
+            tracks = self.book.predicted(tracks, now)  # holds and vectors start where the aircraft are now, not
+            # where the last scan saw them (a node's clock runs ahead of its tracks by up to a scan, more if loaded)
             starts = [r.start_time for r, _ in self.book.upcoming]
             coming = {a.callsign for r, _ in self.book.upcoming for a in r.scenario.aircraft}
             if self.in_flight is not None:

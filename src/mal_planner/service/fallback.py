@@ -116,18 +116,23 @@ def choose_hold(track: Track, others: Picture, scenario: Scenario, rules: Fallba
     :meth:`FallbackRules.look_ahead` times."""
     best: tuple[float, Reference] | None = None
     orbit_s = 2.0 * math.pi * rules.radius() / track.speed
+    times = np.arange(now, now + rules.scales.seconds(max(ENTRY_LEGS_TURN_TIMES)) + orbit_s, rules.step_s)
     for ref in hold_candidates(track, scenario, rules, now):
-        whole = ref.positions(np.arange(now, now + rules.scales.seconds(max(ENTRY_LEGS_TURN_TIMES)) + orbit_s,
-                                        rules.step_s))
-        if not fits_airspace(scenario, whole, rules.edge_nm):
+        if not fits_airspace(scenario, ref.positions(times), rules.edge_nm):
             continue
         clearance, _ = closest_to_others(ref.positions(others.times), others, rules.minima, track.callsign)
         if clearance >= 1.0 + rules.margin:
             return Fallback(track.callsign, "hold", ref, now, reason, clearance)
         if best is None or clearance > best[0]:
             best = (clearance, ref)
-    if best is None:  # nothing fits the airspace (an aircraft at its edge): the first, the net watches it
-        ref = next(hold_candidates(track, scenario, rules, now))
+    if best is None:  # nothing fits the airspace (an aircraft at its edge): the one that leaves it least
+        ref = min(hold_candidates(track, scenario, rules, now), key=lambda r: _outside_nm(scenario, r.positions(times)))
         clearance, _ = closest_to_others(ref.positions(others.times), others, rules.minima, track.callsign)
         best = (clearance, ref)
     return Fallback(track.callsign, "hold", best[1], now, reason, best[0])
+
+
+def _outside_nm(scenario: Scenario, points: np.ndarray) -> float:
+    """How far ``points`` go outside the airspace's box at most (0: inside)."""
+    lo, hi = scenario.airspace[:, 0], scenario.airspace[:, 1]
+    return float(max(np.max(lo - points), np.max(points - hi), 0.0))
