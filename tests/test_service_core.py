@@ -140,6 +140,8 @@ def test_the_node_and_the_closed_loop_decide_alike_on_the_same_radar_tracks(thes
         # X9 flies no plan: both hold it (issue 32), and the node publishes the hold as its path
         assert loop.service.book.fallbacks["X9"].kind == node.service.book.fallbacks["X9"].kind == "hold"
         assert "X9" in node.publisher.published
+        status = node.service.safety_net_status()  # what planner_status.json reports
+        assert status["fallbacks"]["X9"] == "hold" and status["holds"] >= 1
         reasons = [r for _, r in decisions["node"]]
         assert any("deviates" in r for r in reasons) and "X9 has no plan" in reasons, decisions
     finally:

@@ -286,7 +286,7 @@ class PlannerNode:
         current = self.service.book.current
         self.outputs.write_status({"plans": self.publisher.plans, "attempts": self._attempts,
                                    "last_error": self._last_error, "planning": self.jobs.busy,
-                                   "pending": self.jobs.pending},
+                                   "pending": self.jobs.pending, **self.service.safety_net_status()},
                                   current.result.start_time if current else None,
                                   current.result if current else None, set(self.service.book.flying))
 

@@ -25,6 +25,7 @@ from mal_planner.dynamics import make_dynamics
 from mal_planner.geodesy import GeoFrame
 from mal_planner.obstacles import Superquadric
 from mal_planner.scenario.model import Aircraft, Scenario, ScenarioError
+from mal_planner.scenario.obstacle_schema import WallConfig
 from mal_planner.scenario.quantities import field_unit
 from mal_planner.scenario.schema import (
     GEODETIC_ROUND_OFF,
@@ -32,7 +33,6 @@ from mal_planner.scenario.schema import (
     GeoRunwayConfig,
     RunwayConfig,
     ScenarioConfig,
-    WallConfig,
 )
 from mal_planner.units import ft_to_nm
 

@@ -5,9 +5,18 @@ from __future__ import annotations
 
 from typing import Any, get_args
 
-from pydantic import BaseModel, Field
+from pydantic import BaseModel, ConfigDict, Field
 from pydantic.fields import FieldInfo
 from pydantic_core import PydanticUndefined
+
+Vec3 = tuple[float, float, float]
+Interval = tuple[float, float]
+
+
+class Strict(BaseModel):
+    """A schema model: unknown keys are errors, values are frozen."""
+
+    model_config = ConfigDict(extra="forbid", frozen=True)
 
 
 def quantity(unit: str, default: Any = PydanticUndefined, **constraints: Any) -> Any:

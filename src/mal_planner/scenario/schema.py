@@ -10,30 +10,20 @@ import math
 from typing import Annotated, Any, Literal
 
 import numpy as np
-from pydantic import BaseModel, ConfigDict, Discriminator, Field, Tag, field_validator, model_validator
+from pydantic import Discriminator, Field, Tag, field_validator, model_validator
 
 from mal_planner.dynamics import DYNAMICS_MODELS, ControlLimits
 from mal_planner.geodesy import GeoFrame
-from mal_planner.obstacles import Gate, Superquadric, wall_with_hole
-from mal_planner.scenario.quantities import quantity
+from mal_planner.scenario.obstacle_schema import GateConfig, ObstacleConfig
+from mal_planner.scenario.quantities import Interval, Strict, Vec3, quantity
 from mal_planner.scenario.sequencing import SequencingOptions, Strategy
 from mal_planner.units import kt_to_nm_per_s
 from mal_planner.wake import WakeTableName
 from mal_planner.wake import categories as wake_categories
 
-AXIS_INDEX = {"x": 0, "y": 1, "z": 2}
-
 GEODETIC_ROUND_OFF = 1e-9
 """Relative to the airspace's largest extent: how near its boundary a converted geodetic position is taken to be
 on it (the conversion's own round-off is about 1e-12 of the distance from the threshold)."""
-
-
-Vec3 = tuple[float, float, float]
-Interval = tuple[float, float]
-
-
-class _Strict(BaseModel):
-    model_config = ConfigDict(extra="forbid", frozen=True)
 
 
 def _check_interval(value: Interval) -> Interval:
@@ -42,7 +32,7 @@ def _check_interval(value: Interval) -> Interval:
     return value
 
 
-class LimitsConfig(_Strict):
+class LimitsConfig(Strict):
     bank_angle_deg: float = quantity("deg", 45.0, gt=0.0, lt=90.0)
     n_h: Interval = (-2.0, 2.0)
     n_v: Interval = (0.0, 2.0)
@@ -60,7 +50,7 @@ class LimitsConfig(_Strict):
         return ControlLimits(n_h=self.n_h, n_v=self.n_v, bank_angle_max=float(np.radians(self.bank_angle_deg)))
 
 
-class _AircraftCommon(_Strict):
+class _AircraftCommon(Strict):
     callsign: str = Field(min_length=1, max_length=16, pattern=r"^[A-Za-z0-9_]+$")
     flight_path_angle_deg: float = quantity("deg", ge=-30.0, le=30.0)
     model: str = "point_mass"
@@ -127,7 +117,7 @@ AnyAircraftConfig = Annotated[Annotated[AircraftConfig, Tag("local")] | Annotate
                               Discriminator(_is_geodetic_aircraft)]
 
 
-class RunwayConfig(_Strict):
+class RunwayConfig(Strict):
     """The runway in the local frame."""
 
     position: Vec3 = quantity("nm", (0.0, 0.0, 0.0))
@@ -135,14 +125,14 @@ class RunwayConfig(_Strict):
     heading_deg: float = quantity("deg", -90.0)
 
 
-class ThresholdConfig(_Strict):
+class ThresholdConfig(Strict):
     lat: float = quantity("deg", ge=-90.0, le=90.0)
     lon: float = quantity("deg", ge=-180.0, le=180.0)
     elevation_ft: float = quantity("ft", 0.0, ge=-1500.0, le=20000.0)
     """Height of the threshold in ft (the datum of the aircraft's ``alt_ft``)."""
 
 
-class GeoRunwayConfig(_Strict):
+class GeoRunwayConfig(Strict):
     """The runway on the Earth: the origin of the local frame, which turns the landing direction to -y."""
 
     threshold: ThresholdConfig
@@ -164,7 +154,7 @@ AnyRunwayConfig = Annotated[Annotated[RunwayConfig, Tag("local")] | Annotated[Ge
                             Discriminator(_is_geodetic_runway)]
 
 
-class AirspaceConfig(_Strict):
+class AirspaceConfig(Strict):
     x: Interval = quantity("nm")
     y: Interval = quantity("nm")
     z: Interval = quantity("nm")
@@ -172,121 +162,9 @@ class AirspaceConfig(_Strict):
     _intervals = field_validator("x", "y", "z")(_check_interval)
 
 
-def _is_even(value: int) -> int:
-    if value < 2 or value % 2:
-        raise ValueError(f"the exponent p must be an even integer >= 2, got {value}")
-    return value
 
 
-class SuperquadricConfig(_Strict):
-    type: Literal["superquadric"] = "superquadric"
-    name: str
-    center: Vec3 = quantity("nm")
-    semi_axes: Vec3 = quantity("nm")
-    p: int = 2
-
-    _even = field_validator("p")(_is_even)
-
-    @field_validator("semi_axes")
-    @classmethod
-    def _positive(cls, value: Vec3) -> Vec3:
-        if min(value) <= 0.0:
-            raise ValueError("semi-axes must all be > 0")
-        return value
-
-
-class GateConfig(_Strict):
-    name: str = "gate"
-    axis: Literal["x", "y", "z"] = "y"
-    position: float = quantity("nm")
-    direction: Literal[-1, 1] = -1
-    """Sign of the travel along ``axis`` when passing the gate."""
-    bounds: dict[Literal["x", "y", "z"], Interval] = quantity("nm")
-    """The hole's bounds along the two other axes."""
-    flight_path_angle_deg: float = quantity("deg", 0.0)
-    heading_deg: float = quantity("deg", -90.0)
-
-    @model_validator(mode="after")
-    def _two_other_axes(self) -> GateConfig:
-        expected = set("xyz") - {self.axis}
-        if set(self.bounds) != expected:
-            raise ValueError(f"bounds must give exactly the axes {sorted(expected)}")
-        for key, value in self.bounds.items():
-            if not value[0] < value[1]:
-                raise ValueError(f"bounds.{key}: lower bound must be below upper bound")
-        return self
-
-    def to_gate(self) -> Gate:
-        axis = AXIS_INDEX[self.axis]
-        others = [a for a in "xyz" if a != self.axis]
-        return Gate(
-            name=self.name,
-            axis=axis,
-            position=self.position,
-            direction=self.direction,
-            bounds=(tuple(self.bounds[others[0]]), tuple(self.bounds[others[1]])),
-            flight_path_angle=float(np.radians(self.flight_path_angle_deg)),
-            heading=float(np.radians(self.heading_deg)),
-        )
-
-
-class WallConfig(_Strict):
-    """A thin wall with a rectangular hole; expands to four superquadrics and a gate."""
-
-    type: Literal["wall_with_hole"]
-    name: str = "wall"
-    axis: Literal["x", "y", "z"] = "y"
-    position: float = quantity("nm")
-    """Coordinate of the wall's gate face (the thesis: y = 3, the wall spans [3, 3.001])."""
-    thickness: float = quantity("nm", gt=0.0)
-    span: dict[Literal["x", "y", "z"], Interval] = quantity("nm")
-    hole: dict[Literal["x", "y", "z"], Interval] = quantity("nm")
-    p: int = 50
-    direction: Literal[-1, 1] = -1
-    flight_path_angle_deg: float = quantity("deg", 0.0)
-    heading_deg: float = quantity("deg", -90.0)
-
-    _even = field_validator("p")(_is_even)
-
-    @model_validator(mode="after")
-    def _consistent(self) -> WallConfig:
-        expected = set("xyz") - {self.axis}
-        for label, value in (("span", self.span), ("hole", self.hole)):
-            if set(value) != expected:
-                raise ValueError(f"{label} must give exactly the axes {sorted(expected)}")
-        for a in sorted(expected):
-            (s0, s1), (h0, h1) = self.span[a], self.hole[a]
-            if not s0 < h0 < h1 < s1:
-                raise ValueError(f"hole.{a} {list(self.hole[a])} must lie strictly inside span.{a} {[s0, s1]}")
-        return self
-
-    def expand(self) -> tuple[list[Superquadric], GateConfig]:
-        others = [a for a in "xyz" if a != self.axis]
-        pieces = wall_with_hole(
-            self.name,
-            AXIS_INDEX[self.axis],
-            self.position,
-            self.thickness,
-            (self.span[others[0]], self.span[others[1]]),
-            (self.hole[others[0]], self.hole[others[1]]),
-            self.p,
-        )
-        gate = GateConfig(
-            name=f"{self.name}-hole",
-            axis=self.axis,
-            position=self.position,
-            direction=self.direction,
-            bounds=dict(self.hole),
-            flight_path_angle_deg=self.flight_path_angle_deg,
-            heading_deg=self.heading_deg,
-        )
-        return pieces, gate
-
-
-ObstacleConfig = Annotated[SuperquadricConfig | WallConfig, Field(discriminator="type")]
-
-
-class SeparationConfig(_Strict):
+class SeparationConfig(Strict):
     distance_nm: float = quantity("nm", 0.25, gt=0.0)
     """Minimum distance between any two airborne aircraft (a sphere, as in the thesis); with ``vertical_ft``, the
     horizontal minimum."""
@@ -319,7 +197,7 @@ class SeparationConfig(_Strict):
         return self
 
 
-class WindConfig(_Strict):
+class WindConfig(Strict):
     """A constant horizontal wind: the air mass's velocity over the ground (0: still air, as in the thesis).
 
     Give ``speed_kt`` with ``from_deg`` (the direction it blows from, clockwise from true north, as METARs do;
@@ -351,7 +229,7 @@ class WindConfig(_Strict):
         return speed * math.cos(towards), speed * math.sin(towards)
 
 
-class SequencingConfig(_Strict):
+class SequencingConfig(Strict):
     """How the landing order and the free landing times are decided (:mod:`mal_planner.sequencing`)."""
 
     strategy: Strategy = "fcfs"
@@ -366,7 +244,7 @@ class SequencingConfig(_Strict):
         return SequencingOptions(strategy=self.strategy, max_shift=self.max_shift, time_limit_s=self.time_limit_s)
 
 
-class ScenarioConfig(_Strict):
+class ScenarioConfig(Strict):
     """The YAML file's schema."""
 
     name: str

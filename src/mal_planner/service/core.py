@@ -15,7 +15,7 @@ import math
 import threading
 from collections.abc import Mapping
 from dataclasses import replace
-from typing import TYPE_CHECKING
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
@@ -190,6 +190,14 @@ class PlanningService:
                 starts.append(self.in_flight.plan_start)
                 coming |= {a.callsign for a in self.in_flight.inputs.scenario.aircraft}
             return list(self.guard.instruct(tracks, self.book, now, min(starts, default=None), coming))
+
+    def safety_net_status(self) -> dict[str, Any]:
+        """The service's own instructions so far (holds, the net's alerts, uses and vectors) and who flies one now."""
+        with self._lock:
+            counts = self.guard.counts
+            return {"holds": counts["holds"], "vectors": counts["vectors"], "net_alerts": counts["alerts"],
+                    "net_uses": counts["uses"],
+                    "fallbacks": {cs: fb.kind for cs, fb in sorted(self.book.fallbacks.items())}}
 
     def refused(self, now: float, latency_s: float | None = None) -> None:
         """A radar request was refused (:meth:`request` said why), or its planning broke down, at ``now``,
