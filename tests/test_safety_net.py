@@ -143,3 +143,18 @@ def test_with_a_planner_that_fails_every_other_replan_the_thesis_stays_safe(thes
     assert m.losses_of_separation == 0 and m.separation_ratio >= 1.0, m.failures
     assert not [f for f in m.failures if "obstacle" in f], m.failures
     assert m.replans >= 2 and m.failed_replans >= 1 and m.landed >= 2
+
+
+def test_a_hold_starts_where_the_aircraft_is_at_the_clock(thesis) -> None:
+    """The node's clock runs ahead of its tracks (a simulator's /clock, a loaded machine): a hold given 4 s after
+    the last track starts where the aircraft has flown to by then, not where the track saw it."""
+    service = PlanningService(thesis, ServiceRules(deviation_nm=0.05), PlanOptions(seed=0))
+    stamp, now, speed = 10.0, 14.0, 0.04
+    state = np.array([0.0, 4.3, 0.15, 0.0, math.pi / 2])
+    service.take_track(Track("NEW", stamp, state, speed), "runway", "radar/tracks", stamp)
+    service.planned = True  # as after a first plan: aircraft without one hold
+    (given,) = service.instruct(now)
+    (hold,) = given.fallbacks
+    start = hold.reference.position(now)
+    assert hold.reference.start == now
+    assert np.linalg.norm(start[:2] - (state[:2] + speed * (now - stamp) * np.array([0.0, 1.0]))) < 1e-3
