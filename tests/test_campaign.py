@@ -246,3 +246,14 @@ def test_an_older_table_with_absolute_paths_resumes_and_summarizes(campaign: dic
     (old / "summary.md").unlink()
     assert main(["--out", str(old), "--summary-only"]) == 0
     assert (old / "summary.md").read_text(encoding="utf-8") == (out / "summary.md").read_text(encoding="utf-8")
+
+
+def test_a_scenarios_log_keeps_its_story_without_the_optimizers_iterations() -> None:
+    """A closed loop's log is mostly mesh and IPOPT iterations: the campaign keeps the rest, from the start."""
+    from mal_planner.campaign.isolation import LOG_KEPT_CHARS, kept_log
+
+    story = "12:00:00 I mal_planner.service: t=1.0 s: T07 holds (no plan)\n"
+    chatter = "12:00:01 I mal_planner.ocp: mesh iter 0: segments=(2, 3) max_err=1e-3\n" * 5000
+    kept = kept_log(story + chatter + "12:00:02 W mal_planner: partial plan\n")
+    assert kept.startswith(story) and "mesh iter" not in kept and kept.endswith("partial plan\n")
+    assert len(kept_log(story * (LOG_KEPT_CHARS // len(story) + 10))) == LOG_KEPT_CHARS

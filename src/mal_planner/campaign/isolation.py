@@ -71,5 +71,16 @@ def run_isolated(source: str, text: str, options: dict[str, Any], timeout_s: flo
                                output_tail=log_text[-4000:])
             row.update(status="failed", verified=False, failure_class=outcome.failure_class, reason=outcome.reason,
                        seed=options.get("seed"))
-    row["log_tail"] = log_text[-20000:]
+    row["log_tail"] = kept_log(log_text)
     return row
+
+
+LOG_KEPT_CHARS = 200_000
+"""How much of a scenario's log the campaign keeps (its end), after the optimizer's per-iteration lines."""
+
+
+def kept_log(text: str) -> str:
+    """A scenario's log without the transcription's progress lines (mesh and IPOPT iterations: most of a closed
+    loop's log), its last :data:`LOG_KEPT_CHARS` characters: a closed loop's story from the start."""
+    lines = [line for line in text.splitlines(keepends=True) if " mal_planner.ocp: " not in line]
+    return "".join(lines)[-LOG_KEPT_CHARS:]

@@ -82,11 +82,13 @@ def resolution_vectors(tracks: Mapping[str, Track], dv: Mapping[str, np.ndarray]
                      duration_s=until - now + rules.scales.seconds(VECTOR_TURN_TIMES), step_s=rules.step_s)
         others = [c.b if c.a == cs else c.a for c in conflicts if cs in (c.a, c.b)]
         inside = fits_airspace(scenario, ref.positions(np.arange(now, ref.end, rules.step_s)), 0.0)
-        note = f"clear of {', '.join(sorted(set(others)))}" + ("" if inside else " (leaves the airspace)")
+        note = f"clear of {', '.join(sorted(set(others)))}" + ("" if inside else LEAVES)
         out.append(Fallback(cs, "vector", ref, now, f"safety net: {note}", math.nan))
     return out
 
 
+LEAVES = " (leaves the airspace)"
+"""Said of an MVP heading that leaves the airspace (a turned heading that does not is tried next)."""
 TRY_TURNS_DEG = (0.0, 30.0, -30.0, 60.0, -60.0, 90.0, -90.0, 135.0, -135.0)
 """Headings tried from the MVP heading when it leaves the airspace, enters a no-fly zone or stays in conflict."""
 
@@ -97,5 +99,6 @@ def turned(fb: Fallback, track: Track, rules: FallbackRules, turn_deg: float, no
     heading = float(ref.table[-1, 4]) + math.radians(turn_deg)
     out = vector(track.state, track.speed, rules.radius(), heading, level=float(ref.table[-1, 2]), t0=now,
                  duration_s=ref.end - now, step_s=rules.step_s)
+    base = fb.reason.replace(LEAVES, "")
     return Fallback(fb.callsign, "vector", out, now, fb.reason if turn_deg == 0.0 else
-                    f"{fb.reason}, turned {turn_deg:+.0f} deg", fb.clearance)
+                    f"{base}, turned {turn_deg:+.0f} deg from the MVP heading", fb.clearance)
