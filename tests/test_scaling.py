@@ -106,3 +106,21 @@ def test_controls_riding_a_bound_overshoot_it_far_less_between_collocation_point
         _, u = sol.phases[0].interpolate(np.linspace(sol.phases[0].t0, sol.phases[0].tf, 2001))
         overshoot[between] = float(np.abs(u).max()) - 1.0
     assert overshoot[False] > 0.1 and overshoot[True] < overshoot[False] / 5
+
+
+def test_a_sequential_plan_that_stops_hands_out_the_aircraft_planned_before() -> None:
+    """Partial plans (issue 32): the parts a sequential solve made before its first failed one, as one successful
+    result with their trajectories and times only."""
+    from mal_planner.landing.aircraft_plans import planned_prefix
+
+    scenario = load_scenario("scenarios/thesis.yaml")
+    landing = replace(PlanOptions().landing, strategy="sequential")
+    result = Planner(PlanOptions(seed=0, landing=landing, verify=False)).plan(scenario)
+    parts = result.landing.parts
+    first_two = [p.trajectories[0].callsign for p in parts[:2]]
+    stopped = replace(result.landing, success=False, parts=[*parts[:2], replace(parts[2], success=False)])
+    prefix = planned_prefix(stopped)
+    assert prefix is not None and prefix.success and prefix.status.startswith("partial: 2 aircraft")
+    assert [tr.callsign for tr in prefix.trajectories] == first_two
+    assert set(prefix.landing_times) == set(prefix.gate_times) == set(prefix.required_landing_times) == set(first_two)
+    assert planned_prefix(replace(result.landing, parts=[replace(parts[0], success=False)])) is None

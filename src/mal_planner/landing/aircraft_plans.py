@@ -64,10 +64,7 @@ def combine(parts: list[LandingResult], n: int, layout, wall: float, solved: lis
     status = parts[-1].status if success else (
         f"{failed.trajectories[0].callsign if failed.trajectories else '?'}: {failed.status}" if failed is not None
         else f"time limit after {len(parts)} of {n} aircraft")
-    merged: dict = {"gate_times": {}, "landing_times": {}, "required_landing_times": {}}
-    for p in parts:
-        for key in merged:
-            merged[key].update(getattr(p, key))
+    merged = _merged_times(parts)
     return LandingResult(
         success=success, status=status, trajectories=[tr for p in parts for tr in p.trajectories],
         gate_times=merged["gate_times"], landing_times=merged["landing_times"],
@@ -89,8 +86,11 @@ def planned_prefix(landing: LandingResult) -> LandingResult | None:
         parts.append(part)
     if not parts:
         return None
-    merged = [{k: v for p in parts for k, v in getattr(p, key).items()}
-              for key in ("gate_times", "landing_times", "required_landing_times")]
     return replace(landing, success=True, status=f"partial: {len(parts)} aircraft ({landing.status})",
-                   trajectories=[tr for p in parts for tr in p.trajectories], gate_times=merged[0],
-                   landing_times=merged[1], required_landing_times=merged[2], parts=parts)
+                   trajectories=[tr for p in parts for tr in p.trajectories], **_merged_times(parts), parts=parts)
+
+
+def _merged_times(parts: list[LandingResult]) -> dict[str, dict[str, float]]:
+    """The parts' gate, landing and required landing times, by callsign, as LandingResult's fields."""
+    return {key: {k: v for p in parts for k, v in getattr(p, key).items()}
+            for key in ("gate_times", "landing_times", "required_landing_times")}
