@@ -100,7 +100,7 @@ def test_fallback_initializer_out_of_time_is_a_timeout_naming_it(thesis, monkeyp
                                  "1 of 3 planned)")
 
     monkeypatch.setattr(planner, "_cold_attempt", failing_solve)
-    monkeypatch.setattr("mal_planner.pipeline.plan_initial", out_of_time)
+    monkeypatch.setattr("mal_planner.pipeline.planner.plan_initial", out_of_time)
     result = planner.plan(thesis, reuse=False, initial=initial)
     assert result.timed_out and result.landing is None
     assert result.failure == ("timeout", "time limit 60 s reached in the initializer (multi-rrt path of aircraft A2, "
@@ -121,7 +121,7 @@ def test_node_reports_the_initializer_timeout_as_a_failed_plan(thesis) -> None:
     failed: list[tuple[str, str | None]] = []
     node = SimpleNamespace(
         service=service, _now=lambda: 1.0, _clock=time.monotonic,
-        _planning=SimpleNamespace(plan=lambda sc, opts, *, reuse, start_time, what_if: Planner(opts).plan(
+        _planning=SimpleNamespace(plan=lambda sc, opts, *, reuse, start_time, what_if, traffic: Planner(opts).plan(
             sc, reuse=reuse, start_time=start_time)),  # in this process: the PlanProcess interface
         _failed=lambda request, reason, outcome, latency_s, result=None: failed.append(
             (reason, outcome)) or SimpleNamespace(success=False, message=reason))

@@ -34,6 +34,27 @@ def test_the_child_plans_what_this_process_would(planning: PlanProcess) -> None:
     assert what_if.landing_times() == pytest.approx(here.landing_times(), abs=1e-9)
 
 
+def test_the_child_replans_what_changed_among_the_others(planning: PlanProcess) -> None:
+    import numpy as np
+
+    from mal_planner.scenario.traffic import FixedPath, Traffic
+
+    sc = load_scenario("scenarios/thesis.yaml")
+    options = PlanOptions(seed=0, refinement_rounds=0)
+    whole = Planner(options).plan(sc, reuse=False, start_time=0.0)
+    paths = {}
+    for tr in whole.landing.trajectories:
+        t, idx = np.unique(tr.t, return_index=True)
+        paths[tr.callsign] = FixedPath.cut(sc.aircraft_by_callsign(tr.callsign), t, tr.states[idx], 5.0, lands=True)
+    last = whole.order[-1]
+    mine = replace(sc.aircraft_by_callsign(last), state0=paths[last].states[0].copy(), landing_time=None)
+    traffic = Traffic((paths[last],), tuple(p for cs, p in paths.items() if cs != last))
+    there = planning.plan(replace(sc, aircraft=(mine,)), options, reuse=True, start_time=5.0, traffic=traffic)
+    assert there.verified, there.failure
+    assert [tr.callsign for tr in there.landing.trajectories] == [last]
+    assert len(there.verification.pairs) == len(sc.aircraft) - 1  # checked against each fixed path
+
+
 def test_the_childs_exception_is_raised_here(planning: PlanProcess) -> None:
     sc = load_scenario("scenarios/thesis.yaml")
     a1 = sc.aircraft[0]

@@ -48,7 +48,8 @@ def closed_loop_row(scenario: Scenario, source: str, options: dict[str, Any]) ->
         sim=SimOptions(wind=wind, plan_delay_s=loop["delay_s"], seed=seed),
         plan=replace(to_plan_options(options), time_limit_s=options.get("time_limit_s") or PLAN_TIME_LIMIT_S),
         planner_knows_wind=loop["knows_wind"], radar_noise_m=loop["noise_m"],
-        extra_plan_delay_s=loop.get("extra_plan_delay_s", 0.0), fail_every=loop.get("fail_every", 0)), simulator)
+        extra_plan_delay_s=loop.get("extra_plan_delay_s", 0.0), fail_every=loop.get("fail_every", 0),
+        replan_what_changed=loop.get("replan_what_changed", False)), simulator)
     m = measure(run)
     lat = m.replan_latency_s
     row: dict[str, Any] = {
@@ -63,6 +64,7 @@ def closed_loop_row(scenario: Scenario, source: str, options: dict[str, Any]) ->
         "cl_separation_ratio": m.separation_ratio if math.isfinite(m.separation_ratio) else None,
         "cl_losses_of_separation": m.losses_of_separation, "cl_infringements": m.infringements,
         "cl_max_deviation_nm": m.max_deviation_nm, "cl_replans": m.replans, "cl_failed_replans": m.failed_replans,
+        "cl_replans_what_changed": m.replans_what_changed,
         "cl_replan_reasons": ";".join(f"{k}={v}" for k, v in m.replan_reasons.items()),
         "cl_replan_median_s": _finite(lat["median"]), "cl_replan_p95_s": _finite(lat["p95"]),
         "cl_replan_max_s": _finite(lat["max"]), "cl_order_changes": m.order_changes,

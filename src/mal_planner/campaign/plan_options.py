@@ -47,6 +47,9 @@ def add_plan_arguments(parser: argparse.ArgumentParser) -> None:
                       help="a slow planner: every replan reaches the aircraft this much later, s (default: 0)")
     loop.add_argument("--fail-every", type=int, default=0, metavar="K",
                       help="a failing planner: every K-th replan fails (2: every other one; default: 0, none)")
+    loop.add_argument("--replan-what-changed", action="store_true",
+                      help="replan an aircraft that strays with those it can affect; the others keep their "
+                           "instructions (default: every replan is whole)")
     loop.add_argument("--simulator", choices=("ours", "bluesky"), default="ours",
                       help="who flies the plans: our FlightSimulator or BlueSky (optional extra 'bluesky'; steady "
                            "wind only: --gust-kt must be 0) (default: %(default)s)")
@@ -57,7 +60,8 @@ def options_from_args(args: argparse.Namespace) -> dict[str, Any]:
     if args.closed_loop:
         closed = {"wind_kt_max": args.wind_kt_max, "gust_kt": args.gust_kt, "noise_m": args.noise_m,
                   "delay_s": args.delay_s, "knows_wind": not args.unknown_wind, "simulator": args.simulator,
-                  "extra_plan_delay_s": args.extra_plan_delay_s, "fail_every": args.fail_every}
+                  "extra_plan_delay_s": args.extra_plan_delay_s, "fail_every": args.fail_every,
+                  "replan_what_changed": args.replan_what_changed}
     return {**to_campaign(values_from_args(args, CAMPAIGN_OPTIONS)), "closed_loop": closed}
 
 

@@ -42,6 +42,7 @@ CLOSED_LOOP_COLUMNS: tuple[str, ...] = (
     "cl_losses_of_separation", "cl_infringements",
     "cl_max_deviation_nm",         # largest distance of an aircraft from the plan it flew
     "cl_replans", "cl_failed_replans", "cl_replan_reasons",
+    "cl_replans_what_changed",     # replans of some aircraft among the others' instructions
     "cl_replan_median_s", "cl_replan_p95_s", "cl_replan_max_s",
     "cl_order_changes", "cl_min_landing_spacing_s",
     "cl_replan_times_s",           # every replan's planning time as charged (CPU), ';'-separated

@@ -83,6 +83,9 @@ def build_parser() -> argparse.ArgumentParser:
                    help="a slow planner: every replan reaches the aircraft this much later, s (default: 0)")
     p.add_argument("--fail-every", type=int, default=0, metavar="K",
                    help="a failing planner: every K-th replan fails (2: every other one; default: 0, none)")
+    p.add_argument("--replan-what-changed", action="store_true",
+                   help="replan an aircraft that strays with those it can affect; the others keep their instructions "
+                        "(default: every replan is whole)")
     p.add_argument("--simulator", choices=("ours", "bluesky"), default="ours",
                    help="who flies the plans: our FlightSimulator, or BlueSky's aircraft and autopilot (steady wind "
                         "only; needs the bluesky extra) (default: %(default)s)")
@@ -108,7 +111,9 @@ def summary_lines(m: ClosedLoopMetrics, planner_side: bool = True) -> list[str]:
         f"minimum)",
         f"  largest deviation    {m.max_deviation_nm:.4f} nm from the plan being flown",
         f"  replans              {m.replans} ({', '.join(f'{k} {v}' for k, v in m.replan_reasons.items()) or 'none'}"
-        f"{f'; {m.failed_replans} failed' if m.failed_replans else ''}), order changes {m.order_changes}",
+        f"{f'; {m.failed_replans} failed' if m.failed_replans else ''}"
+        f"{f'; {m.replans_what_changed} of what changed' if m.replans_what_changed else ''}), order changes "
+        f"{m.order_changes}",
         f"  planning time        first {_seconds(m.first_plan_s)}; replans median {_seconds(lat['median'])}, p95 "
         f"{_seconds(lat['p95'])}, max {_seconds(lat['max'])}",
         f"  fallback             {100.0 * m.fallback_share:.1f} % of the flight time; {m.holds} holds, safety net "
@@ -175,7 +180,8 @@ def main(argv: list[str] | None = None) -> int:
         plan=build_plan_options(values),
         planner_knows_wind=not args.unknown_wind, radar_noise_m=args.noise_m, radar_period_s=args.radar_period_s,
         replan_period_s=args.replan_period_s, planning_time_factor=args.planning_time_factor, progress=not args.quiet,
-        extra_plan_delay_s=args.extra_plan_delay_s, fail_every=max(args.fail_every, 0))
+        extra_plan_delay_s=args.extra_plan_delay_s, fail_every=max(args.fail_every, 0),
+        replan_what_changed=args.replan_what_changed)
     out = args.out or Path("out") / "closed_loop" / scenario.name
     out.mkdir(parents=True, exist_ok=True)
     t0 = time.perf_counter()

@@ -28,6 +28,7 @@ from mal_planner.closedloop.disturbances import RadarNoise, WindSpec
 from mal_planner.closedloop.simulator import FlightSimulator, SimOptions
 from mal_planner.options import SERVICE_TIME_LIMIT_S, PlanOptions
 from mal_planner.pipeline import Planner, PlanResult
+from mal_planner.pipeline.among import plan_or_replan
 from mal_planner.scales import Scales
 from mal_planner.scenario import Scenario
 from mal_planner.service.book import Event, Handout, Instructed, Kept, Stale, Withdrawn
@@ -88,6 +89,9 @@ class ClosedLoopOptions:
     """A slow planner: every replan reaches the aircraft this much later (tests of the fallback)."""
     fail_every: int = 0
     """A failing planner: every this many-th replan fails (2: every other one; 0: none) (tests of the fallback)."""
+    replan_what_changed: bool = False
+    """An aircraft that strays is replanned with those it can affect, the others keep their instructions
+    (:attr:`~mal_planner.service.rules.ServiceRules.replan_what_changed`)."""
 
 
 @dataclass
@@ -107,6 +111,8 @@ class Replan:
     """The planning's CPU time (the process's, every thread)."""
     charged_s: float = math.nan
     """The planning time charged in simulated time (see ``ClosedLoopOptions.charge``)."""
+    kept: int = 0
+    """A replan of what changed: how many aircraft kept their instructions (0: a whole replan)."""
 
 
 @dataclass
@@ -160,7 +166,8 @@ class ClosedLoop:
         self.rules = ServiceRules.closed_loop(
             scenario, noise_sigma_nm=self.noise.sigma_nm, radar_period_s=opts.radar_period_s,
             deviation_nm=opts.deviation_nm, period_s=opts.replan_period_s,
-            filter_turn_times=opts.track_filter_turn_times, replan_limit_turn_times=opts.replan_limit_turn_times)
+            filter_turn_times=opts.track_filter_turn_times, replan_limit_turn_times=opts.replan_limit_turn_times,
+            replan_what_changed=opts.replan_what_changed)
         base = planning_scenario(scenario, opts.sim.wind, opts.planner_knows_wind)
         self.service = PlanningService(base, self.rules, opts.plan, flown=opts.tracking_margins)
         self.planner = Planner(self.service.options)
@@ -207,7 +214,7 @@ class ClosedLoop:
         else:
             try:
                 self.planner.options = request.options
-                result = self.planner.plan(request.scenario, start_time=request.plan_start)
+                result = plan_or_replan(self.planner, request.scenario, request.plan_start, request.traffic)
                 failure = None if result.failure is None else f"{result.failure.outcome}: {result.failure.reason}"
             except Exception as exc:  # the service keeps running: the aircraft keep their plans
                 failure = " ".join(str(exc).split()) or type(exc).__name__
@@ -220,8 +227,9 @@ class ClosedLoop:
         if reason != "initial plan":
             charged += self.options.extra_plan_delay_s
         t = request.plan_start if not isinstance(request, str) else t_request
+        kept = 0 if isinstance(request, str) or request.traffic is None else len(request.traffic.fixed)
         record = Replan(t, reason, wall, t_request + charged, failure is None, failure or "verified", tracked, order,
-                        cpu, charged)
+                        cpu, charged, kept)
         if not isinstance(request, str):
             self._records[id(request)] = record
         log.info("t=%.1f s: plan (%s) %s in %.2f s (CPU %.2f s)", t, reason,

@@ -70,6 +70,8 @@ class ClosedLoopMetrics:
     net_uses: int = 0
     """Scans at which the safety net vectored aircraft (the planner had no plan in time)."""
     vectors: int = 0
+    replans_what_changed: int = 0
+    """Replans of what changed (some aircraft among the others' instructions; :mod:`mal_planner.service.subsets`)."""
     external_losses_of_separation: list[str] | None = None
     """The losses of separation the simulator's own detection counted (pairs "A-B"), when it has one (BlueSky's
     ``external_los_pairs``); None: ours only."""
@@ -195,7 +197,7 @@ def measure_flight(sc: Scenario, sim: FlightSimulator, replans: list[Replan] | N
                           "max": max(latencies, default=math.nan)},
         first_plan_s=first.wall_s if first else first_plan_s, order_changes=changes, wall_s=wall_s,
         notes=notes + ([] if first is None or first.ok else [f"first plan failed: {first.message}"]),
-        external_losses_of_separation=_external_losses(sim))
+        external_losses_of_separation=_external_losses(sim), replans_what_changed=sum(r.kept > 0 for r in replans))
 
 
 def _external_losses(sim: FlightSimulator) -> list[str] | None:

@@ -142,3 +142,18 @@ def straight_line_guess(scenario: Scenario, callsigns: Sequence[str], landing_ti
         t, states = _path_states(points, ac.dynamics, level_turn_radius(ac) / ac.speed / SAMPLES_PER_TURN_TIME)
         out.append(_make_guess(ac, t, states, gate, t_land))
     return out
+
+
+def guess_along(aircraft: Aircraft, t: np.ndarray, states: np.ndarray, gate: Gate | None, landing_time: float
+                ) -> AircraftGuess:
+    """A guess that follows a given path (an aircraft's current plan, times from the plan's start) from where the
+    aircraft is: the offset between the two fades out over one turn time of the aircraft, and the first sample
+    carries its attitude."""
+    t = np.asarray(t, float)
+    states = np.array(states, float)[:, :5]
+    fade = np.clip(1.0 - t * aircraft.speed / level_turn_radius(aircraft), 0.0, 1.0)
+    states[:, :3] += np.outer(fade, aircraft.state0[:3] - states[0, :3])
+    states[:, 4] = np.unwrap(states[:, 4])
+    states[:, 4] += 2 * np.pi * np.round((aircraft.state0[4] - states[0, 4]) / (2 * np.pi))  # a whole turn off
+    states[0, 3:] = aircraft.state0[3:]
+    return AircraftGuess(aircraft.callsign, t, states, landing_time, _crossing_time(gate, t, states[:, :3]))

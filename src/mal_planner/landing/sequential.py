@@ -34,6 +34,8 @@ from mal_planner.landing.solve import LandingOptimizer, layout_for
 from mal_planner.ocp.solver import INFEASIBLE
 from mal_planner.scales import Scales
 from mal_planner.scenario import Scenario
+from mal_planner.scenario.traffic import FixedPath
+from mal_planner.sequencing.schedule import planned_spacing
 from mal_planner.trajectory import closest_approach
 
 log = logging.getLogger("mal_planner.optimizer")
@@ -78,8 +80,12 @@ class SequentialOptimizer:
     """A warm start takes each aircraft's previous plan by callsign: any earlier result with those aircraft."""
 
     def __init__(self, scenario: Scenario, guesses: list[AircraftGuess], options: LandingOptions,
-                 reguess: Reguess | None = None) -> None:
+                 reguess: Reguess | None = None, fixed: Sequence[FixedPath] = ()) -> None:
+        """``fixed``: paths of other aircraft that every aircraft keeps clear of, as of the ones planned before it
+        (a replan of what changed); the recoveries are not tried then (that replan gives way to a whole one)."""
         self.scenario = scenario
+        self.fixed: Flown = [(f.callsign, f.t, f.positions) for f in fixed]
+        self._fixed_landings = [(f.landing_time, f.aircraft) for f in fixed if f.landing_time is not None]
         self.options = options
         self.layout = layout_for(scenario, guesses)
         self.scales = Scales.of(scenario)
@@ -185,6 +191,7 @@ class SequentialOptimizer:
                           max_nlp_iterations=min(self.options.max_nlp_iterations,
                                                  self.options.sequential_max_iterations))
         run = _Pass(list(guesses), {p.trajectories[0].callsign: p for p in previous or [] if p.trajectories})
+        run.flown.extend(self.fixed)
         t_start = time.perf_counter()
         i = 0
         while i < len(run.order):
@@ -199,7 +206,7 @@ class SequentialOptimizer:
                 i += 1
                 continue
             part = self._plan_next(scenario, run, i, meshes, deadline, only, options)
-            if meshes is None:
+            if meshes is None and not self.fixed:
                 step = self._recover_if_stuck(scenario, run, i, part, deadline, options)
                 if step == "swap":  # the previous aircraft is planned again, after this one
                     run.parts.pop()
@@ -228,8 +235,8 @@ class SequentialOptimizer:
         plan."""
         guess = run.order[i]
         earliest = None
-        if not options.fixed_landing_times and run.parts:
-            earliest = earliest_after(scenario, run.parts[-1], guess.callsign)
+        if not options.fixed_landing_times and (run.parts or self._fixed_landings):
+            earliest = self._earliest(scenario, run, guess)
             if guess.landing_time < earliest:
                 guess = run.order[i] = retimed(guess, earliest)
         mesh = None if meshes is None else meshes.get(guess.callsign)
@@ -250,6 +257,15 @@ class SequentialOptimizer:
             run.kept_parts.append(kept)
             part = kept
         return part
+
+    def _earliest(self, scenario: Scenario, run: _Pass, guess: AircraftGuess) -> float:
+        """The earliest landing of ``guess``'s aircraft with free landing times: the spacing after the one planned
+        before it and after every fixed path landing before its slot (0: none lands before it)."""
+        follower = scenario.aircraft_by_callsign(guess.callsign)
+        times = [earliest_after(scenario, run.parts[-1], guess.callsign)] if run.parts else []
+        times += [t + planned_spacing(scenario, leader, follower) for t, leader in self._fixed_landings
+                  if t <= guess.landing_time]
+        return max(times, default=0.0)
 
     def _recover_if_stuck(self, scenario: Scenario, run: _Pass, i: int, part: LandingResult, deadline,
                           options: LandingOptions) -> LandingResult | str | None:

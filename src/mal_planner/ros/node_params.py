@@ -101,7 +101,8 @@ class NodeParams(Mapping[str, Any]):
                             filter_time_constant_s=Scales.of(scenario).seconds(v["track_filter_turn_times"]),
                             track_timeout_s=v["track_timeout_s"], kept_plan_expiry_s=v["kept_plan_expiry_s"],
                             settle_time_s=v["settle_time_s"], min_aircraft=v["min_aircraft"],
-                            replan_time_limit_s=limit, frame_id=v["frame_id"])
+                            replan_time_limit_s=limit, frame_id=v["frame_id"],
+                            replan_what_changed=v["replan_what_changed"])
 
 
 def read_params_file(path: str | Path | None, node_name: str, namespace: str, log: logging.Logger

@@ -27,6 +27,7 @@ if TYPE_CHECKING:
     from mal_planner.options import PlanOptions
     from mal_planner.pipeline import PlanResult
     from mal_planner.scenario import Scenario
+    from mal_planner.scenario.traffic import Traffic
 
 LOG_FORMAT = "[%(levelname)s] [%(asctime)s] [%(name)s]: %(message)s"
 """The node's log line format (the child logs to the same stderr in the same form)."""
@@ -46,6 +47,7 @@ def _serve(conn: Connection, log_level: int) -> None:
     die_with_parent()
     logging.basicConfig(level=log_level, stream=sys.stderr, format=LOG_FORMAT)
     from mal_planner.pipeline import Planner
+    from mal_planner.pipeline.among import plan_or_replan
 
     planner: Planner | None = None
     given: PlanOptions | None = None
@@ -59,7 +61,7 @@ def _serve(conn: Connection, log_level: int) -> None:
         if op == "reset":
             planner = None
             continue
-        options, scenario, reuse, start_time, what_if = payload
+        options, scenario, reuse, start_time, what_if, traffic = payload
         try:
             if what_if:
                 result = Planner(options).plan(scenario, reuse=False, start_time=start_time)
@@ -67,7 +69,7 @@ def _serve(conn: Connection, log_level: int) -> None:
                 if planner is None or given is None or _but_time_limit(given) != _but_time_limit(options):
                     planner = Planner(options)  # other options: the next plan starts from scratch
                 planner.options, given = options, options  # a replan's own time limit keeps the warm start
-                result = planner.plan(scenario, reuse=reuse, start_time=start_time)
+                result = plan_or_replan(planner, scenario, start_time, traffic, reuse=reuse)
             conn.send(("ok", result))
         except Exception as exc:  # sent back and raised in the node, as if planned there
             try:
@@ -106,15 +108,15 @@ class PlanProcess:
         return None if self._proc is None else self._proc.pid
 
     def plan(self, scenario: Scenario, options: PlanOptions, *, reuse: bool, start_time: float,
-             what_if: bool = False) -> PlanResult:
-        """Plan in the child; its exception is raised here. A dead child raises :class:`PlanningProcessDied`
-        and is started again for the next plan."""
+             what_if: bool = False, traffic: Traffic | None = None) -> PlanResult:
+        """Plan in the child (a replan of what changed among ``traffic``, if given); its exception is raised here. A
+        dead child raises :class:`PlanningProcessDied` and is started again for the next plan."""
         with self._lock:
             if self._proc is None or not self._proc.is_alive():
                 self._start()
             assert self._conn is not None
             try:
-                self._conn.send(("plan", (options, scenario, reuse, start_time, what_if)))
+                self._conn.send(("plan", (options, scenario, reuse, start_time, what_if, traffic)))
                 status, value = self._conn.recv()
             except (EOFError, OSError):
                 self._proc.join(timeout=1.0)

@@ -225,7 +225,7 @@ class PlannerNode:
         t0, clock0 = time.perf_counter(), self._clock()
         try:
             result = self._planning.plan(sc, request.options, reuse=not job.what_if, start_time=request.plan_start,
-                                         what_if=job.what_if)
+                                         what_if=job.what_if, traffic=request.traffic)
         except Exception as exc:
             log.debug("planning failed", exc_info=True)
             return self._failed(request, f"planning failed: {one_line(str(exc)) or type(exc).__name__}",

@@ -153,8 +153,10 @@ class PlanBook:
             offsets = self._offsets(trajectories, result.start_time, now)
             scales, minima = Scales.of(result.scenario), Minima.of(result.scenario)
             refs = {cs: Reference(tr.t + result.start_time, tr.states) for cs, tr in trajectories.items()}
+            others = None if request.traffic is None else {  # a replan of what changed: clear of the others too
+                cs: ref for cs, ref in self.instructions().items() if cs in tracked and cs not in refs}
             why = None if self.rules.deviation_nm <= 0 else unsafe_offsets(  # 0: the tracks do not follow plans
-                refs, offsets, now, scales, minima, result.scenario.airspace, self.rules.deviation_nm)
+                refs, offsets, now, scales, minima, result.scenario.airspace, self.rules.deviation_nm, others)
             if why is not None:  # the aircraft keep what they fly; the policy asks again at once
                 self.last_arrival = -math.inf
                 events.append(Stale(request, f"stale: {why}, {now - request.plan_start:.1f} s after the tracks it "

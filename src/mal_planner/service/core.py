@@ -30,6 +30,7 @@ from mal_planner.service.intake import TrackIntake, Verdict
 from mal_planner.service.policy import ReplanPolicy, wind_change_reason
 from mal_planner.service.request import PlanRequest
 from mal_planner.service.rules import LEAD_PER_LATENCY, ServiceRules, replan_time_limit, service_plan_options
+from mal_planner.service.subsets import traffic_for
 from mal_planner.service.tracks import Track
 from mal_planner.trajectory import Reference
 from mal_planner.units import nm_per_s_to_kt
@@ -149,16 +150,36 @@ class PlanningService:
             shift = 0.0 if self.epoch is None else max(0.0, plan_start - self.epoch)
             if not what_if:
                 self.planned = True
+            straying = self._straying(reason, given or what_if)
+            instructions, flying = (self.book.instructions(), dict(self.book.flying)) if straying else ({}, {})
         inputs = build_plan_scenario(base, current, plan_start, shift)
         for cs, why in inputs.left_out.items():
             log.warning("aircraft %s left out of the plan: %s", cs, why)
         if not inputs.scenario.aircraft:
             return "no aircraft to plan (all left out)"
-        req = PlanRequest(reason, now, plan_start, inputs, options, what_if, given)
+        traffic = None
+        if straying is not None and not inputs.left_out:
+            traffic = traffic_for(straying, inputs.scenario, instructions, flying, plan_start)
+        if traffic is not None:
+            mine = tuple(a for a in inputs.scenario.aircraft if a.callsign in traffic.callsigns)
+            inputs = replace(inputs, scenario=replace(inputs.scenario, aircraft=mine))
+            log.info("replan of what changed: %s among %d aircraft that keep their instructions",
+                     ", ".join(traffic.callsigns), len(traffic.fixed))
+        req = PlanRequest(reason, now, plan_start, inputs, options, what_if, given, traffic)
         if not what_if:
             with self._lock:
                 self.in_flight, self.asked = req, False
         return req
+
+    def _straying(self, reason: str, explicit: bool) -> set[str] | None:
+        """The aircraft a replan of what changed serves (:attr:`ServiceRules.replan_what_changed`): those that
+        stray (:attr:`ReplanPolicy.straying`) when ``reason`` is a deviation, unless the replan before failed (then a
+        whole one) or the states are explicit."""
+        straying = self.policy.straying
+        if (not self.rules.replan_what_changed or explicit or self.failures_in_a_row > 0 or straying is None
+                or straying[0] != reason):
+            return None
+        return straying[1]
 
     def _replan_limit(self, options: PlanOptions, what_if: bool) -> float | None:
         """A replan's time limit: the rules' (:func:`replan_time_limit`), doubled after each failure in a row up to

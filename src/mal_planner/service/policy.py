@@ -27,12 +27,19 @@ from mal_planner.service.rules import ServiceRules
 from mal_planner.service.tracks import Track
 from mal_planner.trajectory import Reference
 
+STRAYING_SHARE = 0.5
+"""When an aircraft strays beyond the deviation threshold, those beyond this share of it stray too (a replan of what
+changed replans them with it): they would ask for a replan of their own within the replan interval or so."""
+
 
 class ReplanPolicy:
-    """Decides from the rules, the filtered tracks and the plans being flown (no state of its own)."""
+    """Decides from the rules, the filtered tracks and the plans being flown (it remembers only who strayed)."""
 
     def __init__(self, rules: ServiceRules) -> None:
         self.rules = rules
+        self.straying: tuple[str, set[str]] | None = None
+        """(the reason, the aircraft) when the latest decision was a deviation: the one beyond the threshold and
+        those beyond :data:`STRAYING_SHARE` of it; a replan of what changed may serve them."""
 
     def decide(self, now: float, tracks: Mapping[str, Track], flying: Mapping[str, Reference], *, busy: bool,
                planned: bool, last_arrival: float, first_track_at: float | None) -> str | None:
@@ -41,6 +48,7 @@ class ReplanPolicy:
         radar track's time (None: none yet)."""
         if busy or not tracks:
             return None
+        self.straying = None
         if not planned:
             return self._first_plan(now, tracks, first_track_at)
         if now - last_arrival < self.rules.min_interval_s:
@@ -48,9 +56,13 @@ class ReplanPolicy:
         for cs in tracks:
             if cs not in flying:
                 return f"{cs} has no plan"
-        worst, who = self.worst_deviation(tracks, flying)
-        if self.rules.deviation_nm > 0 and worst > self.rules.deviation_nm:
-            return f"{who} deviates {worst:.3f} nm from its plan"
+        deviations = self.deviations(tracks, flying)
+        who = max(deviations, key=deviations.__getitem__, default="")
+        if self.rules.deviation_nm > 0 and deviations.get(who, 0.0) > self.rules.deviation_nm:
+            reason = f"{who} deviates {deviations[who]:.3f} nm from its plan"
+            self.straying = (reason, {cs for cs, d in deviations.items()
+                                      if d > STRAYING_SHARE * self.rules.deviation_nm})
+            return reason
         if self.rules.period_s > 0 and now - last_arrival >= self.rules.period_s:
             return "periodic replan"
         return None
@@ -66,13 +78,20 @@ class ReplanPolicy:
         """The largest distance (nm) of a track from its plan at the track's time, and whose; aircraft near their
         plan's end (within ``min_interval_s``) or without a plan are not counted."""
         worst, who = 0.0, ""
+        for cs, dev in self.deviations(tracks, flying).items():
+            if dev > worst:
+                worst, who = dev, cs
+        return worst, who
+
+    def deviations(self, tracks: Mapping[str, Track], flying: Mapping[str, Reference]) -> dict[str, float]:
+        """The distance (nm) of each track from its plan at the track's time; aircraft near their plan's end (within
+        ``min_interval_s``) or without a plan are not counted."""
+        out = {}
         for cs, tr in tracks.items():
             ref = flying.get(cs)
             if ref is not None and ref.start <= tr.stamp <= ref.end - self.rules.min_interval_s:
-                dev = float(np.linalg.norm(ref.position(tr.stamp) - tr.state[:3]))
-                if dev > worst:
-                    worst, who = dev, cs
-        return worst, who
+                out[cs] = float(np.linalg.norm(ref.position(tr.stamp) - tr.state[:3]))
+        return out
 
 
 def wind_change_reason(old: tuple[float, float], new: tuple[float, float], rules: ServiceRules,

@@ -45,10 +45,12 @@ def reanchored(traj: Trajectory, offset: np.ndarray, at: float, fade_s: float) -
 
 
 def unsafe_offsets(refs: Mapping[str, Reference], offsets: Mapping[str, np.ndarray], now: float, scales: Scales,
-                   minima: Minima, airspace: np.ndarray, deviation_nm: float = 0.0) -> str | None:
+                   minima: Minima, airspace: np.ndarray, deviation_nm: float = 0.0,
+                   others: Mapping[str, Reference] | None = None) -> str | None:
     """Why re-anchoring ``refs`` by ``offsets`` at ``now`` is unsafe (one line), or None (see the module
     docstring); ``deviation_nm``: the service's deviation threshold, the largest offset where it is larger than half
-    the separation (the margins of flown plans are sized to it)."""
+    the separation (the margins of flown plans are sized to it); ``others``: what the aircraft outside the plan fly
+    (a replan of what changed), which the moved paths must keep the minimum from too."""
     limit = max(MAX_OFFSET_SEPARATIONS * minima.horizontal_nm, deviation_nm)
     for cs, off in offsets.items():
         d = float(np.linalg.norm(off))
@@ -70,11 +72,15 @@ def unsafe_offsets(refs: Mapping[str, Reference], offsets: Mapping[str, np.ndarr
         bound = np.maximum(np.maximum(outside(planned), out[0]), inside)
         if np.any((out > bound + 1e-12)[1:] & live[cs][1:]):
             return f"{cs} would leave the airspace on the plan moved to where it is"
-    for a, b in itertools.combinations(sorted(moved), 2):
+    fixed = {cs: ref.positions(times) for cs, ref in (others or {}).items() if cs not in moved}
+    live |= {cs: times <= (others or {})[cs].end for cs in fixed}
+    pairs = [*itertools.combinations(sorted(moved), 2), *itertools.product(sorted(moved), sorted(fixed))]
+    paths = moved | fixed
+    for a, b in pairs:
         both = live[a] & live[b]
         if not both.any():
             continue
-        r = float(minima.ratio(moved[a][both], moved[b][both]).min())
+        r = float(minima.ratio(paths[a][both], paths[b][both]).min())
         if r < 1.0:
             return f"{a} and {b} {r:.2f} minima apart on the plan moved to where they are"
     return None

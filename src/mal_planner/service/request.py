@@ -6,6 +6,7 @@ from dataclasses import dataclass
 
 from mal_planner.options import PlanOptions
 from mal_planner.scenario import Scenario
+from mal_planner.scenario.traffic import Traffic
 from mal_planner.service.inputs import PlanInputs
 
 
@@ -24,6 +25,9 @@ class PlanRequest:
     """Answered, never handed out (explicit states from a service call)."""
     given_tracks: bool = False
     """Made from tracks the caller gave, not from the radar's."""
+    traffic: Traffic | None = None
+    """A replan of what changed: the aircraft of ``scenario`` replanned among this traffic
+    (:mod:`mal_planner.service.subsets`); None: a whole plan."""
 
     @property
     def scenario(self) -> Scenario:

@@ -68,12 +68,16 @@ class ServiceRules:
     """Wall-clock limit of a replan (the first plan has the plan options' limit); None: the options' limit."""
     frame_id: str = "runway"
     """The frame radar tracks must be given in."""
+    replan_what_changed: bool = False
+    """An aircraft that strays is replanned with those it can affect, among the others' current instructions
+    (:mod:`mal_planner.service.subsets`); False: every replan is whole."""
 
     @classmethod
     def closed_loop(cls, scenario: Scenario, *, noise_sigma_nm: float = 0.0, radar_period_s: float = 1.0,
                     deviation_nm: float | None = None, period_s: float = 0.0,
                     filter_turn_times: float = TRACK_FILTER_TURN_TIMES,
-                    replan_limit_turn_times: float = REPLAN_LIMIT_TURN_TIMES) -> ServiceRules:
+                    replan_limit_turn_times: float = REPLAN_LIMIT_TURN_TIMES,
+                    replan_what_changed: bool = False) -> ServiceRules:
         """The closed loop's rules, sized by the scenario's scales: the deviation threshold the larger of
         :data:`DEVIATION_ACCURACIES` path accuracies, :data:`DEVIATION_PER_SEPARATION` separations and
         :data:`DEVIATION_PER_NOISE` filtered noise sigmas (unless given), a turn time between replans. A simulated
@@ -87,7 +91,7 @@ class ServiceRules:
                                DEVIATION_PER_NOISE * noise_sigma_nm * noise_factor(radar_period_s, tau))
         return cls(deviation_nm=deviation_nm, min_interval_s=scales.seconds(REPLAN_INTERVAL_TURN_TIMES),
                    period_s=period_s, filter_time_constant_s=tau, track_timeout_s=0.5 * radar_period_s,
-                   replan_time_limit_s=scales.seconds(replan_limit_turn_times))
+                   replan_time_limit_s=scales.seconds(replan_limit_turn_times), replan_what_changed=replan_what_changed)
 
 
 def service_plan_options(options: PlanOptions, scenario: Scenario, rules: ServiceRules, *,

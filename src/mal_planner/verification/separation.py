@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import itertools
 import math
+from collections.abc import Set
 from dataclasses import dataclass
 
 import numpy as np
@@ -22,15 +23,20 @@ def separation_checks(flown: dict[str, tuple[np.ndarray, np.ndarray]], scenario:
 
 
 def pair_separations(flown: dict[str, tuple[np.ndarray, np.ndarray]], scenario: Scenario, tol: Tolerances,
-                     fail) -> list[PairCheck]:
+                     fail, fixed: Set[str] = frozenset()) -> list[PairCheck]:
     """Minimum distance of every pair while both are airborne, on a common dense grid.
 
     Each pair has its own grid (the union of both aircraft's samples while both fly); the grids of all pairs
-    are concatenated and evaluated at once, with the same arithmetic per sample as pair by pair.
+    are concatenated and evaluated at once, with the same arithmetic per sample as pair by pair. ``fixed``: paths
+    flown as their chords (no chord error: another plan's path as its aircraft follows it); a pair of two is not
+    checked.
     """
-    spare_of = {cs: chord_error_bound(scenario.aircraft_by_callsign(cs), t) for cs, (t, _) in flown.items()}
+    spare_of = {cs: 0.0 if cs in fixed else chord_error_bound(scenario.aircraft_by_callsign(cs), t)
+                for cs, (t, _) in flown.items()}
     names, grids = [], []
     for (a, (ta, xa)), (b, (tb, xb)) in itertools.combinations(flown.items(), 2):
+        if a in fixed and b in fixed:
+            continue
         t_end = min(ta[-1], tb[-1])
         t_start = max(ta[0], tb[0])
         if t_end <= t_start:

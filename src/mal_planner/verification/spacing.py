@@ -3,17 +3,22 @@
 from __future__ import annotations
 
 import itertools
+from collections.abc import Set
 
 from mal_planner.scenario import Scenario
 from mal_planner.verification.report import AircraftCheck, LandingGap, Tolerances
 from mal_planner.wake import wake_distance_nm
 
 
-def landing_gaps(scenario: Scenario, checks: list[AircraftCheck], tol: Tolerances, fail) -> list[LandingGap]:
-    """Landing-time spacing in landing order (``fail(callsigns, text)`` for each pair too close)."""
+def landing_gaps(scenario: Scenario, checks: list[AircraftCheck], tol: Tolerances, fail,
+                 fixed: Set[str] = frozenset()) -> list[LandingGap]:
+    """Landing-time spacing in landing order (``fail(callsigns, text)`` for each pair too close); a pair of two
+    ``fixed`` aircraft (not this plan's) is not checked."""
     order = sorted(checks, key=lambda c: c.landing_time)
     landings: list[LandingGap] = []
     for a, b in itertools.pairwise(order):
+        if a.callsign in fixed and b.callsign in fixed:
+            continue
         gap = b.landing_time - a.landing_time
         record = LandingGap(f"{a.callsign}->{b.callsign}", gap, scenario.landing_spacing_s)
         landings.append(record)

@@ -18,6 +18,7 @@ from mal_planner.landing.sequential import SequentialOptimizer
 from mal_planner.landing.solve import LandingOptimizer, make_guesses, shift_guesses, uses_sequential
 from mal_planner.landing.strategy import make_optimizer
 from mal_planner.options import PlanOptions, resolve_flown, scenario_for
+from mal_planner.pipeline.refine import verify_and_refine
 from mal_planner.scales import Scales
 from mal_planner.scenario import Scenario
 from mal_planner.sequencing.schedule import check_request
@@ -184,7 +185,7 @@ class Planner:
             log.info("verification of the partial plan: %s", "verified" if report.verified else
                      "; ".join(report.reasons[:5]))
         elif landing is not None and landing.success and opts.verify:
-            landing, report = self._verify_and_refine(scenario, landing, timings, deadline)
+            landing, report = verify_and_refine(scenario, landing, self._optimizer, opts, timings, deadline)
         result = PlanResult(scenario, opts, initial, landing, report, timings, start_time,
                             timed_out=deadline.expired() or self._stopped is not None, stopped=self._stopped,
                             unplanned=unplanned)
@@ -350,30 +351,6 @@ class Planner:
         guesses = (self._previous_guesses(scenario, start_time) if self._replanning
                    else make_guesses(scenario, self._initial, free))
         return self._new_optimizer(scenario, guesses, free).solve(scenario, deadline=deadline)
-
-    def _verify_and_refine(self, scenario: Scenario, landing: LandingResult, timings: dict[str, float],
-                           deadline: Deadline) -> tuple[LandingResult, VerificationReport]:
-        """Verify; where separation or an obstacle fails between collocation points, add points and re-solve."""
-        opts = self.options
-        fixed = landing.required_landing_times if self._optimizer and self._optimizer.options.fixed_landing_times \
-            else None
-        t2 = time.perf_counter()
-        report = verify(scenario, landing.trajectories, opts.tolerances, landing_times=fixed)
-        for round_ in range(opts.refinement_rounds):
-            times = report.violation_times()
-            if report.verified or not times or self._optimizer is None or deadline.expired():
-                break
-            log.info("verification round %d: %s; refining the mesh there", round_ + 1, "; ".join(report.reasons[:3]))
-            refined = self._optimizer.refine_at(landing, times, scenario, deadline=deadline,
-                                                callsigns=report.violating_callsigns())
-            if not refined.success:
-                break
-            landing = refined
-            report = verify(scenario, landing.trajectories, opts.tolerances, landing_times=fixed)
-        timings["verification_s"] = time.perf_counter() - t2
-        log.info("verification: %s", "verified" if report.verified else "; ".join(report.reasons[:5]))
-        return landing, report
-
 
 def _partial(scenario: Scenario, landing: LandingResult, initial: InitialPlan
              ) -> tuple[Scenario, LandingResult, InitialPlan, tuple[str, ...]]:
