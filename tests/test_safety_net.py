@@ -90,6 +90,36 @@ def test_a_predicted_conflict_brings_in_the_net_unless_a_plan_comes_in_time(thes
     assert ratio.min() >= 1.0, ratio.min()
 
 
+def test_when_one_of_a_pair_cannot_turn_the_other_takes_the_whole_resolution(thesis) -> None:
+    """B has no heading that fits (as at the airspace's edge beside a no-fly zone): it holds first, and A's vector,
+    which then takes all of the resolution (MVP shares it when both can turn), keeps the minimum from B's hold."""
+    now, speed = 0.0, 0.04
+    a = _line(now, (-0.8, 4.5, 0.15), 0.0, speed, 200.0)
+    b = _line(now, (2.4, 4.5, 0.15), math.pi, speed, 200.0)
+    tracks = {"A": Track("A", now, np.r_[a.position(now), 0.0, 0.0], speed),
+              "B": Track("B", now, np.r_[b.position(now), 0.0, math.pi], speed)}
+
+    def net(b_stuck: bool) -> tuple[PlanBook, dict[str, str]]:
+        book = PlanBook(ServiceRules(deviation_nm=0.05), lambda cs, ref, t: None)
+        book.flying.update({"A": a, "B": b})
+        guard = Guard.of(thesis, 0.05)
+        if b_stuck:
+            feasible = guard._feasible_vector
+            guard._feasible_vector = (  # type: ignore[method-assign]
+                lambda fb, *rest: None if fb.callsign == "B" else feasible(fb, *rest))
+        (given,) = guard.instruct(tracks, book, now, None)
+        return book, {f.callsign: f.kind for f in given.fallbacks}
+
+    _, kinds = net(b_stuck=False)
+    assert kinds == {"A": "vector", "B": "vector"}
+    alone, kinds = net(b_stuck=True)
+    assert kinds == {"A": "vector", "B": "hold"}
+    times = now + np.arange(0.0, 120.0, 0.5)
+    ratio = Minima.of(thesis).ratio(alone.fallbacks["A"].reference.positions(times),
+                                    alone.fallbacks["B"].reference.positions(times))
+    assert ratio.min() >= 1.0, ratio.min()
+
+
 @pytest.fixture(scope="module")
 def first_plan(thesis):
     options = ClosedLoopOptions(sim=SimOptions(seed=1), plan=PlanOptions(time_limit_s=120.0))

@@ -10,6 +10,7 @@ and resolution is counted.
 from __future__ import annotations
 
 import logging
+import math
 from collections import Counter
 from collections.abc import Mapping
 from dataclasses import dataclass, field
@@ -134,10 +135,16 @@ class Guard:
             return []
         final = {cs: ref.end for cs, ref in book.flying.items()
                  if ref.end - now < self.rules.scales.seconds(ESTABLISHED_TURN_TIMES)}
-        dv = displacements(urgent, pic, self.rules, now, final)
         headings = {cs: fb.reference.table[-1, 4] for cs, fb in book.fallbacks.items() if fb.kind == "vector"}
-        vectors = resolution_vectors(tracks, dv, urgent, self.scenario, self.rules, now, headings)
-        given = []
+        vectors = resolution_vectors(tracks, displacements(urgent, pic, self.rules, now, final), urgent,
+                                     self.scenario, self.rules, now, headings)
+        stuck = {fb.callsign for fb in vectors if self._feasible_vector(fb, tracks[fb.callsign], pic, now) is None}
+        given = [self._hold(tracks[cs], book, pic, now, "safety net: no vector inside the airspace and clear of the "
+                            "no-fly zones") for cs in sorted(stuck)]
+        if stuck:  # their partners take the whole resolution, clear of their holds
+            dv = displacements(urgent, pic, self.rules, now, {**final, **{cs: math.inf for cs in stuck}})
+            vectors = [fb for fb in resolution_vectors(tracks, dv, urgent, self.scenario, self.rules, now, headings)
+                       if fb.callsign not in stuck]
         for fb in vectors:
             chosen = self._feasible_vector(fb, tracks[fb.callsign], pic, now)
             if chosen is None:  # every heading leaves the airspace or enters a no-fly zone: it holds
