@@ -120,6 +120,19 @@ def test_when_one_of_a_pair_cannot_turn_the_other_takes_the_whole_resolution(the
     assert ratio.min() >= 1.0, ratio.min()
 
 
+def test_a_hold_that_cannot_fit_leaves_the_box_rather_than_enter_a_no_fly_zone(thesis) -> None:
+    """When no hold fits (an aircraft at the airspace's edge beside a no-fly zone), the one chosen may cross the
+    box's edge but not a no-fly zone: the key orders no-fly-zone chords before the distance outside."""
+    from mal_planner.service.fallback import _infringement
+
+    through_wall = np.array([[2.0, 4.0 - 0.1 * k, 0.15] for k in range(21)])  # crosses wall-2 beside the hole
+    top = float(thesis.airspace[2, 1])
+    above_box = np.array([[-2.0, 4.0 - 0.1 * k, top + 0.01] for k in range(21)])  # 0.01 nm above the ceiling
+    assert _infringement(thesis, through_wall)[0] > 0 and _infringement(thesis, through_wall)[1] == 0.0
+    assert _infringement(thesis, above_box) == (0, pytest.approx(0.01))
+    assert min((through_wall, above_box), key=lambda p: _infringement(thesis, p)) is above_box
+
+
 @pytest.fixture(scope="module")
 def first_plan(thesis):
     options = ClosedLoopOptions(sim=SimOptions(seed=1), plan=PlanOptions(time_limit_s=120.0))

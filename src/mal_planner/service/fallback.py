@@ -125,14 +125,18 @@ def choose_hold(track: Track, others: Picture, scenario: Scenario, rules: Fallba
             return Fallback(track.callsign, "hold", ref, now, reason, clearance)
         if best is None or clearance > best[0]:
             best = (clearance, ref)
-    if best is None:  # nothing fits the airspace (an aircraft at its edge): the one that leaves it least
-        ref = min(hold_candidates(track, scenario, rules, now), key=lambda r: _outside_nm(scenario, r.positions(times)))
+    if best is None:  # nothing fits with the edge margin (an aircraft at the airspace's edge, by a no-fly zone)
+        ref = min(hold_candidates(track, scenario, rules, now),
+                  key=lambda r: _infringement(scenario, r.positions(times)))
         clearance, _ = closest_to_others(ref.positions(others.times), others, rules.minima, track.callsign)
         best = (clearance, ref)
     return Fallback(track.callsign, "hold", best[1], now, reason, best[0])
 
 
-def _outside_nm(scenario: Scenario, points: np.ndarray) -> float:
-    """How far ``points`` go outside the airspace's box at most (0: inside)."""
+def _infringement(scenario: Scenario, points: np.ndarray) -> tuple[int, float]:
+    """How much the path through ``points`` infringes: the chords in a no-fly zone (none: it may touch the margin
+    only), then how far it goes outside the airspace's box (0: inside). A no-fly zone is never entered to stay
+    inside the box: a box's edge is a line on a chart, a restricted area may be a mountain or a military range."""
     lo, hi = scenario.airspace[:, 0], scenario.airspace[:, 1]
-    return float(max(np.max(lo - points), np.max(points - hi), 0.0))
+    hits = sum(int(np.count_nonzero(ob.segment_hits(points[:-1], points[1:]))) for ob in scenario.obstacles)
+    return hits, float(max(np.max(lo - points), np.max(points - hi), 0.0))
