@@ -74,15 +74,6 @@ class ReplanPolicy:
             return None
         return f"initial plan ({len(tracks)} aircraft tracked)"
 
-    def worst_deviation(self, tracks: Mapping[str, Track], flying: Mapping[str, Reference]) -> tuple[float, str]:
-        """The largest distance (nm) of a track from its plan at the track's time, and whose; aircraft near their
-        plan's end (within ``min_interval_s``) or without a plan are not counted."""
-        worst, who = 0.0, ""
-        for cs, dev in self.deviations(tracks, flying).items():
-            if dev > worst:
-                worst, who = dev, cs
-        return worst, who
-
     def deviations(self, tracks: Mapping[str, Track], flying: Mapping[str, Reference]) -> dict[str, float]:
         """The distance (nm) of each track from its plan at the track's time; aircraft near their plan's end (within
         ``min_interval_s``) or without a plan are not counted."""
