@@ -37,9 +37,9 @@ ALERT_MARGIN_SHARE = 0.5
 """The net alerts below 1 + this share of the fallback margin, in minima: the minimum plus one aircraft's tracking
 deviation (a terminal area 3.15 nm of 3)."""
 ACT_TURN_TIMES = 4.0
-"""A conflict predicted this soon is resolved now, whatever plan is on its way (a terminal area 55 s, the thesis
-30 s: a turn of 30 deg then still opens the separation and its margin); a later one waits for a plan due a turn time
-before it."""
+"""The net's time to act: a conflict predicted this soon is resolved now (a terminal area 55 s, the thesis 30 s: a
+turn of 30 deg then still opens the separation and its margin); a later one waits only for a plan due this long
+before it, so a plan that fails or comes stale still leaves the net all of its time."""
 ESTABLISHED_TURN_TIMES = 2.0
 """An aircraft this close to its plan's end is on final: the net moves the other aircraft of a conflict."""
 
@@ -120,14 +120,18 @@ class Guard:
              deliver_at: float | None) -> list[Fallback]:
         alerts = conflicts(pic, self.rules.minima, 1.0 + ALERT_MARGIN_SHARE * self.rules.margin)
         pairs = {(c.a, c.b) for c in alerts}
+        for c in alerts:
+            if (c.a, c.b) not in self._active:
+                log.info("t=%.1f s: alert %s-%s: %.2f minima predicted at t=%.1f s (below %.2f from t=%.1f s)", now,
+                         c.a, c.b, c.ratio, c.t_closest, 1.0 + ALERT_MARGIN_SHARE * self.rules.margin, c.t)
         self.counts["alerts"] += len(pairs - self._active)
         self._active = pairs
         if not alerts:
             return []
-        react, act = self.rules.scales.time_s, self.rules.scales.seconds(ACT_TURN_TIMES)
+        act = self.rules.scales.seconds(ACT_TURN_TIMES)
         urgent: list[Conflict] = []
         for c in alerts:
-            if c.t - now > act and deliver_at is not None and deliver_at <= c.t - react:
+            if deliver_at is not None and deliver_at <= c.t - act:
                 self.counts["waited"] += 1
             else:
                 urgent.append(c)

@@ -2,7 +2,7 @@
 
 Every radar scan the service predicts every aircraft along its instruction over the look-ahead
 (:mod:`mal_planner.service.conflicts`). A pair predicted below the minimum is an alert. The net resolves it only
-when the planner has no plan in time (none under way or waiting whose start comes a turn time before the
+when the planner has no plan in time (none under way or waiting whose start comes the net's time to act before the
 conflict): then the pair gets vectors, by the Modified Voltage Potential of Eby (1994) as BlueSky's
 ``asas/MVP.py`` computes it, on the predicted paths instead of straight lines: the displacement that would put the
 pair ``resolve`` minima apart at their closest point, over the time to it, shared by both aircraft (all of it by
