@@ -140,6 +140,7 @@ def test_closed_loop_campaign_row(tmp_path: Path) -> None:
     replans = [float(x) for x in row["cl_replan_times_s"].split(";") if x]
     assert len(replans) == int(row["cl_replans"]) and all(x >= 0 for x in replans)
     assert "runs needed no replan" in summary
+    assert "| 2 | 1 | 1 | 2/2 | " in summary, summary  # the fallback table: 1 run, everyone landed, 2 of 2
 
 
 def test_simulator_clock_drives_an_rclpy_node_with_use_sim_time(dds_env: dict[str, str]) -> None:  # noqa: F811

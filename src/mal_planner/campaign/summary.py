@@ -219,10 +219,30 @@ def closed_loop_section(rows: Sequence[dict[str, str]]) -> list[str]:
                   "| N | replans | median | p95 | max |", "|---|---|---|---|---|"]
         lines += [f"| {n} | {len(t)} | {_fmt(float(np.median(t)))} | {_fmt(float(np.percentile(t, 95)))} | "
                   f"{_fmt(max(t))} |" for n, t in pooled if t]
+    lines += fallback_section(flown)
     failed = [r for r in flown if r["status"] != "ok"]
     if failed:
         lines += ["", "Runs that failed, and why:", ""]
         lines += [f"* {Path(r['file']).name}: {r['reason']}" for r in failed[:20]]
+    return lines
+
+
+def fallback_section(flown: Sequence[dict[str, str]]) -> list[str]:
+    """Per size: who landed, the share of the flight time on holds and vectors, and the safety net's work."""
+    lines = ["", "Fallbacks and the safety net per size (fallback share: the share of the aircraft's flight time on a "
+             "hold, a vector or nothing, per run):", "",
+             "| N | runs | everyone landed | aircraft landed | fallback share median / max | holds | net alerts | "
+             "net uses | vectors |", "|---|---|---|---|---|---|---|---|---|"]
+    for n in sorted({n for r in flown if (n := n_of(r)) is not None}):
+        sel = [r for r in flown if n_of(r) == n]
+        landed = [int(as_float(r["cl_landed"]) or 0) for r in sel]
+        share = [v for r in sel if (v := as_float(r.get("cl_fallback_share", ""))) is not None]
+        total = {key: int(sum(as_float(r.get(key, "")) or 0 for r in sel))
+                 for key in ("cl_holds", "cl_net_alerts", "cl_net_uses", "cl_vectors")}
+        lines.append(f"| {n} | {len(sel)} | {sum(k == n for k in landed)} | {sum(landed)}/{n * len(sel)} | "
+                     f"{_fmt(_median([100.0 * v for v in share]), 1)} / "
+                     f"{_fmt(100.0 * max(share) if share else None, 1)} % | {total['cl_holds']} | "
+                     f"{total['cl_net_alerts']} | {total['cl_net_uses']} | {total['cl_vectors']} |")
     return lines
 
 
