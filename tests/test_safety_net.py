@@ -64,7 +64,8 @@ def test_a_hold_keeps_the_margin_from_everyones_current_plans(thesis) -> None:
 
 def test_a_predicted_conflict_brings_in_the_net_unless_a_plan_comes_in_time(thesis) -> None:
     """Two aircraft on plans that meet head on in 40 s: with a plan due a minute later the net vectors both apart
-    (MVP) and the vectors are clear of each other; with one due in 5 s it leaves it to the plan."""
+    (MVP) and the vectors are clear of each other, as with one due 20 s later (it would leave the net too little time
+    if it failed); with one due in 5 s it leaves it to the plan."""
     now, speed = 0.0, 0.04
     a = _line(now, (-0.8, 4.5, 0.15), 0.0, speed, 200.0)
     b = _line(now, (2.4, 4.5, 0.15), math.pi, speed, 200.0)
@@ -79,6 +80,10 @@ def test_a_predicted_conflict_brings_in_the_net_unless_a_plan_comes_in_time(thes
 
     guard, book, events = guarded(deliver_at=5.0)
     assert events == [] and guard.counts["alerts"] == 1 and guard.counts["waited"] == 1
+    # due 20 s from now, 17 s before the conflict: should it fail or come stale, the net would have less than its
+    # time to act (30 s here), so it acts now
+    guard, book, events = guarded(deliver_at=20.0)
+    assert len(events) == 1 and guard.counts["waited"] == 0 and guard.counts["uses"] == 1
     guard, book, events = guarded(deliver_at=60.0)
     (given,) = events
     assert isinstance(given, Instructed) and {f.callsign for f in given.fallbacks} == {"A", "B"}
