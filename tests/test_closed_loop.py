@@ -143,6 +143,32 @@ def test_closed_loop_campaign_row(tmp_path: Path) -> None:
     assert "| 2 | 1 | 1 | 2/2 | " in summary, summary  # the fallback table: 1 run, everyone landed, 2 of 2
 
 
+def test_a_failed_closed_loop_run_leaves_its_flown_record_beside_its_log(tmp_path: Path) -> None:
+    """mal-campaign --closed-loop on the real Dask engine: an aircraft that starts at the ceiling climbing leaves
+    the airspace, and the campaign keeps that run's record (what each aircraft was told, the flown tracks) as
+    logs/<name>.closed_loop.json, out of the table."""
+    import json
+
+    from mal_planner.campaign.results import FLOWN_RECORD, read_rows
+
+    data = __import__("yaml").safe_load(THESIS.read_text(encoding="utf-8"))
+    data["aircraft"] = data["aircraft"][:2]
+    data["aircraft"][0]["position"][2] = data["airspace"]["z"][1]
+    data["aircraft"][0]["flight_path_angle_deg"] = 8.0
+    (tmp_path / "s").mkdir()
+    (tmp_path / "s" / "climbing.yaml").write_text(__import__("yaml").safe_dump(data), encoding="utf-8")
+    out = subprocess.run([sys.executable, "-m", "mal_planner.campaign.cli", str(tmp_path / "s"), "--out",
+                          str(tmp_path / "c"), "--workers", "1", "--closed-loop", "--wind-kt-max", "10",
+                          "--no-progress", "-q"], capture_output=True, text=True, timeout=600, check=False)
+    assert out.returncode == 0, out.stderr[-2000:]
+    (row,) = read_rows(tmp_path / "c" / "results.csv")
+    assert row["status"] == "failed" and "leaves the airspace" in row["reason"] and FLOWN_RECORD not in row
+    record = json.loads((tmp_path / "c" / "logs" / "climbing.closed_loop.json").read_text(encoding="utf-8"))
+    assert set(record["flown"]) == {"A1", "A2"} and record["metrics"]["infringements"] >= 1
+    assert {i["callsign"] for i in record["instructions"]} == {"A1", "A2"}
+    assert record["options"]["wind_kt"] == pytest.approx(float(row["cl_wind_kt"]), rel=1e-5)
+
+
 def test_simulator_clock_drives_an_rclpy_node_with_use_sim_time(dds_env: dict[str, str]) -> None:  # noqa: F811
     from ros2_env import ros2_env
 

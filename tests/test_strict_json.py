@@ -48,8 +48,11 @@ def test_closed_loop_json_is_strict_with_the_first_plans_time(tmp_path: Path) ->
     from mal_planner.closedloop.cli import main
 
     assert main([str(THESIS), "--out", str(tmp_path), "--no-figure", "-q"]) == 0
-    metrics = strict_load(tmp_path / "closed_loop.json")["metrics"]
+    record = strict_load(tmp_path / "closed_loop.json")
+    metrics = record["metrics"]
     assert metrics["first_plan_s"] > 0 and metrics["all_landed"]
+    told = {i["callsign"] for i in record["instructions"] if i["kind"] == "plan"}  # who was told what, and when
+    assert told == set(record["flown"]) and len(told) == metrics["aircraft"]
     assert metrics["replans"] > 0 or metrics["replan_latency_s"] == {"median": None, "p95": None, "max": None}
 
 

@@ -15,9 +15,11 @@ from typing import Any
 
 import numpy as np
 
+from mal_planner.campaign.results import FLOWN_RECORD
 from mal_planner.closedloop.disturbances import WindSpec
 from mal_planner.closedloop.loop import PLAN_TIME_LIMIT_S, ClosedLoopOptions, run_closed_loop
 from mal_planner.closedloop.metrics import measure
+from mal_planner.closedloop.record import run_record
 from mal_planner.closedloop.simulator import SimOptions
 from mal_planner.scenario import Scenario
 from mal_planner.units import nm_per_s_to_kt
@@ -76,6 +78,8 @@ def closed_loop_row(scenario: Scenario, source: str, options: dict[str, Any]) ->
         "cl_simulator_losses_of_separation": (None if m.external_losses_of_separation is None
                                               else len(m.external_losses_of_separation)),
     }
+    if not m.success:  # the campaign writes it beside the run's log (logs/<name>.closed_loop.json)
+        row[FLOWN_RECORD] = run_record(run, m, {**loop, "wind_kt": speed_kt, "wind_from_deg": from_deg})
     return row
 
 

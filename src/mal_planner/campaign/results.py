@@ -62,6 +62,9 @@ SEQUENCE_COLUMNS: tuple[str, ...] = (
 )
 """Sequencing and wake columns (empty for runs without a plan; missing from tables written before them)."""
 COLUMNS = COLUMNS + CLOSED_LOOP_COLUMNS + SEQUENCE_COLUMNS
+FLOWN_RECORD = "flown_record"
+"""A failed closed-loop run's record (:func:`mal_planner.closedloop.record.run_record`) in its row on the way from
+the worker: the runner writes it to ``logs/<name>.closed_loop.json``, not into the table."""
 
 
 def format_row(row: dict) -> dict[str, str]:

@@ -15,8 +15,9 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
+from mal_planner import jsonio
 from mal_planner.campaign.isolation import run_isolated
-from mal_planner.campaign.results import ResultsTable
+from mal_planner.campaign.results import FLOWN_RECORD, ResultsTable
 from mal_planner.errors import one_line
 
 if TYPE_CHECKING:
@@ -103,9 +104,11 @@ def run_campaign(jobs: Sequence[ScenarioJob], options: dict[str, Any], settings:
                 except Exception as exc:  # the engine lost the task: still a row
                     row = engine_failure_row(job, exc, options.get("seed"))
                 row = {**job.known, **row}
-                log_tail = row.pop("log_tail", "")
+                log_tail, flown = row.pop("log_tail", ""), row.pop(FLOWN_RECORD, None)
                 if logs_dir is not None and log_tail:
                     (logs_dir / f"{Path(job.source).stem}.log").write_text(log_tail, encoding="utf-8")
+                if logs_dir is not None and flown is not None:
+                    jsonio.write(logs_dir / f"{Path(job.source).stem}.closed_loop.json", flown, indent=None)
                 table.append(row)
                 rows.append(row)
                 failed += row.get("status") != "ok"

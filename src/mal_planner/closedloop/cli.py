@@ -19,6 +19,7 @@ from mal_planner.closedloop.bluesky_sim import make_simulator
 from mal_planner.closedloop.disturbances import DEFAULT_GUST_TAU_S, WindSpec
 from mal_planner.closedloop.loop import ClosedLoopOptions, run_closed_loop
 from mal_planner.closedloop.metrics import ClosedLoopMetrics, measure
+from mal_planner.closedloop.record import run_record
 from mal_planner.closedloop.simulator import LOAD_FACTOR_LAG_S, SimOptions
 from mal_planner.options import SERVICE_TIME_LIMIT_S, add_arguments, build_plan_options, check_values, values_from_args
 from mal_planner.scenario import Scenario, ScenarioError, load_scenario
@@ -187,13 +188,8 @@ def main(argv: list[str] | None = None) -> int:
     t0 = time.perf_counter()
     run = run_closed_loop(scenario, options, simulator)
     metrics = measure(run)
-    record = {"metrics": metrics.to_dict(),
-              "options": {k: v for k, v in vars(args).items() if k not in ("scenario", "out")},
-              "wind_mean_kt": [nm_per_s_to_kt(w) for w in wind.mean],
-              "plans": [vars(r) for r in [run.first, *run.replans]],
-              "flown": {ac.callsign: {"t": ac.t, "x": [s[0] for s in ac.states], "y": [s[1] for s in ac.states],
-                                      "z": [s[2] for s in ac.states], "status": ac.status, "note": ac.end_note}
-                        for ac in run.sim.aircraft}}
+    record = run_record(run, metrics, {k: v for k, v in vars(args).items() if k not in ("scenario", "out")})
+    record["wind_mean_kt"] = [nm_per_s_to_kt(w) for w in wind.mean]
     jsonio.write(out / "closed_loop.json", record, default=float)
     if not args.no_figure:
         from mal_planner.closedloop.figure import figure_closed_loop
