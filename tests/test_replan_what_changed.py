@@ -14,10 +14,10 @@ from mal_planner.closedloop.loop import run_closed_loop
 from mal_planner.closedloop.metrics import measure
 from mal_planner.options import PlanOptions
 from mal_planner.pipeline import Planner
-from mal_planner.pipeline.among import plan_among
+from mal_planner.pipeline.among import plan_among, plan_joining
 from mal_planner.scenario import load_scenario
 from mal_planner.scenario.traffic import FixedPath, Traffic
-from mal_planner.service.subsets import AFFECT_SEPARATIONS, traffic_for
+from mal_planner.service.subsets import AFFECT_SEPARATIONS, joining_traffic, traffic_for
 from mal_planner.trajectory import Reference
 from mal_planner.verification import verify
 
@@ -82,6 +82,25 @@ def test_a_replan_of_what_changed_keeps_the_others_and_is_verified_against_them(
     assert pairs == {frozenset((last, cs)) for cs in paths if cs != last}
 
 
+def test_an_aircraft_without_a_plan_joins_after_the_others_clear_of_their_paths(thesis_plan) -> None:
+    scenario, result = thesis_plan
+    start = 10.0
+    last = result.order[-1]
+    trajectories = {tr.callsign: tr for tr in result.landing.trajectories}
+    paths = {cs: _path(scenario, tr, start) for cs, tr in trajectories.items() if cs != last}
+    here = trajectories[last].state_at(np.array([start]))[0]  # where it is (it flew no plan: say, a hold)
+    me = replace(scenario.aircraft_by_callsign(last), state0=here, landing_time=None)
+    joined = plan_joining(Planner(PlanOptions()), replace(scenario, aircraft=(me,)),
+                          Traffic((), tuple(paths.values()), (last,)), start_time=start)
+    assert joined.verified, joined.failure
+    assert [tr.callsign for tr in joined.landing.trajectories] == [last]
+    # it lands after the last fixed landing, at least the landing spacing behind it
+    latest = max(p.landing_time for p in paths.values())
+    assert joined.landing.landing_times[last] >= latest + scenario.landing_spacing_s - 1e-6
+    pairs = {frozenset(p.pair.split("-")) for p in joined.verification.pairs}
+    assert pairs == {frozenset((last, cs)) for cs in paths}
+
+
 def _level(cs: str, y0: float, x: float, t_end: float = 100.0) -> Reference:
     t = np.array([0.0, t_end])
     return Reference(t, np.array([[x, y0, 0.1, 0.0, -math.pi / 2], [x, y0 - 0.04 * t_end, 0.1, 0.0, -math.pi / 2]]))
@@ -106,6 +125,20 @@ def test_the_service_replans_the_straying_aircraft_with_those_it_can_affect() ->
     assert traffic_for({"A"}, tracked, plans | vector, plans, 10.0) is None
     both = {cs: plans[cs] for cs in ("A", "B")}
     assert traffic_for({"A"}, tracked, both | hold | {"D": _level("D", 5.0, far)}, both, 10.0) is None
+
+
+def test_aircraft_without_a_plan_join_among_everyone_flying_one() -> None:
+    scenario = load_scenario(THESIS)
+    ac = {cs: replace(scenario.aircraft[0], callsign=cs) for cs in ("A", "B", "C")}
+    plans = {"A": _level("A", 5.0, 0.0), "B": _level("B", 5.0, 1.0)}
+    tracked = replace(scenario, aircraft=tuple(ac.values()))
+    traffic = joining_traffic({"C"}, tracked, plans, 10.0)
+    assert traffic is not None and traffic.callsigns == ("C",) and traffic.replanned == ()
+    assert {p.callsign: p.landing_time for p in traffic.fixed} == {"A": pytest.approx(90.0), "B": pytest.approx(90.0)}
+    # a whole plan is due: nobody flies a plan, another aircraft flies none, or a plan ended
+    assert joining_traffic({"A", "B", "C"}, tracked, {}, 10.0) is None
+    assert joining_traffic({"C"}, tracked, {"A": plans["A"]}, 10.0) is None
+    assert joining_traffic({"C"}, tracked, plans, 100.0) is None
 
 
 def test_the_closed_loop_replans_what_changed_and_keeps_every_minimum() -> None:

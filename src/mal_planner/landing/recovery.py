@@ -63,6 +63,8 @@ class Planner(Protocol):
 
     reguess: Any
     scales: Scales
+    fixed: Flown
+    """Paths that stay as they are (a plan among the others'): no recovery may move them."""
 
     @property
     def screen(self) -> PairScreen: ...
@@ -115,10 +117,16 @@ class _Recoveries:
         steps: list[tuple[str, Callable[[], LandingResult | str | None]]] = [("another guess", self.another_guess)]
         if self.schedule_made and options.fixed_landing_times:
             steps.insert(0 if options.replanning else 1, ("later landing", self.later_landing))
+        if self.planner.fixed:  # among paths that stay: those before it cannot give way or swap (they may be fixed)
+            return self._first_that_works(steps)
         steps.append(("give way", self.give_way))
         if self.schedule_made and stuck.i > 0 and not any(r.callsign == cs and r.name == "swap with the previous"
                                                           for r in stuck.recoveries):
             steps.append(("swap with the previous", self.swap))
+        return self._first_that_works(steps)
+
+    def _first_that_works(self, steps: list[tuple[str, Callable[[], LandingResult | str | None]]]
+                          ) -> LandingResult | str | None:
         for name, run in steps:
             outcome = self.attempt(name, run)
             if outcome is not None:

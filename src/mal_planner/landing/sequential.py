@@ -80,9 +80,11 @@ class SequentialOptimizer:
     """A warm start takes each aircraft's previous plan by callsign: any earlier result with those aircraft."""
 
     def __init__(self, scenario: Scenario, guesses: list[AircraftGuess], options: LandingOptions,
-                 reguess: Reguess | None = None, fixed: Sequence[FixedPath] = ()) -> None:
+                 reguess: Reguess | None = None, fixed: Sequence[FixedPath] = (), recover_among_fixed: bool = False
+                 ) -> None:
         """``fixed``: paths of other aircraft that every aircraft keeps clear of, as of the ones planned before it
-        (a replan of what changed); the recoveries are not tried then (that replan gives way to a whole one)."""
+        (a replan of what changed); the recoveries are not tried then (that replan gives way to a whole one), unless
+        ``recover_among_fixed`` (aircraft without a plan joining the others: a later landing and another guess)."""
         self.scenario = scenario
         self.fixed: Flown = [(f.callsign, f.t, f.positions) for f in fixed]
         self._fixed_landings = [(f.landing_time, f.aircraft) for f in fixed if f.landing_time is not None]
@@ -91,6 +93,7 @@ class SequentialOptimizer:
         self.scales = Scales.of(scenario)
         """The whole scenario's scales: every aircraft's subproblem is scaled and margined alike."""
         self.reguess = reguess
+        self.recover_among_fixed = recover_among_fixed
         self._guesses = guesses
         self.setup_time = 0.0
 
@@ -206,7 +209,7 @@ class SequentialOptimizer:
                 i += 1
                 continue
             part = self._plan_next(scenario, run, i, meshes, deadline, only, options)
-            if meshes is None and not self.fixed:
+            if meshes is None and (not self.fixed or self.recover_among_fixed):
                 step = self._recover_if_stuck(scenario, run, i, part, deadline, options)
                 if step == "swap":  # the previous aircraft is planned again, after this one
                     run.parts.pop()

@@ -125,7 +125,8 @@ NODE_OPTIONS: tuple[Option, ...] = (
            "failure (radar time); two minutes is 8 nm at 250 kt; 0 = never", lo=0.0, unit="s",
            ros="kept_plan_expiry_s"),
     Option("replan_what_changed", bool, False, "replan an aircraft that strays with those it can affect (within two "
-           "separations), the others keeping their instructions; false: every replan is whole",
+           "separations), and plan aircraft without a plan to land after the others, the others keeping their "
+           "instructions; false: every replan is whole",
            ros="replan_what_changed"),
     Option("service_timeout_s", float, 600.0, "longest a service call waits for its plan", above=0.0, unit="s",
            ros="service_timeout_s"),

@@ -61,7 +61,9 @@ class Traffic:
     """The current plans of the aircraft to replan (their initial guesses and landing times)."""
     fixed: tuple[FixedPath, ...]
     """The paths of the others, which stay as they are."""
+    joining: tuple[str, ...] = ()
+    """Aircraft that fly no plan, planned to land after everyone in ``fixed`` (no current plan to start from)."""
 
     @property
     def callsigns(self) -> tuple[str, ...]:
-        return tuple(p.callsign for p in self.replanned)
+        return (*(p.callsign for p in self.replanned), *self.joining)

@@ -30,7 +30,7 @@ from mal_planner.service.intake import TrackIntake, Verdict
 from mal_planner.service.policy import ReplanPolicy, wind_change_reason
 from mal_planner.service.request import PlanRequest
 from mal_planner.service.rules import LEAD_PER_LATENCY, ServiceRules, replan_time_limit, service_plan_options
-from mal_planner.service.subsets import traffic_for
+from mal_planner.service.subsets import joining_traffic, traffic_for
 from mal_planner.service.tracks import Track
 from mal_planner.trajectory import Reference
 from mal_planner.units import nm_per_s_to_kt
@@ -78,6 +78,8 @@ class PlanningService:
         self.in_flight: PlanRequest | None = None
         self.failures_in_a_row = 0
         """Plans that failed (or were refused) since the last one handed out: the next replan gets more time."""
+        self.local_failed = False
+        """The last plan that ended was of some aircraft among the others' plans, and it failed: a whole one next."""
 
     def _estimate(self, callsign: str, plan: Reference, t: float) -> np.ndarray | None:
         return self.intake.filter.estimate(callsign, plan, t)
@@ -150,8 +152,9 @@ class PlanningService:
             shift = 0.0 if self.epoch is None else max(0.0, plan_start - self.epoch)
             if not what_if:
                 self.planned = True
-            straying = self._straying(reason, given or what_if)
-            instructions, flying = (self.book.instructions(), dict(self.book.flying)) if straying else ({}, {})
+            straying = self._local(self.policy.straying, reason, given or what_if)
+            joining = self._local(self.policy.joining, reason, given or what_if)
+            instructions, flying = self.book.instructions(), dict(self.book.flying)
         inputs = build_plan_scenario(base, current, plan_start, shift)
         for cs, why in inputs.left_out.items():
             log.warning("aircraft %s left out of the plan: %s", cs, why)
@@ -160,10 +163,13 @@ class PlanningService:
         traffic = None
         if straying is not None and not inputs.left_out:
             traffic = traffic_for(straying, inputs.scenario, instructions, flying, plan_start)
+        elif joining is not None and not inputs.left_out:
+            traffic = joining_traffic(joining, inputs.scenario, flying, plan_start)
         if traffic is not None:
             mine = tuple(a for a in inputs.scenario.aircraft if a.callsign in traffic.callsigns)
             inputs = replace(inputs, scenario=replace(inputs.scenario, aircraft=mine))
-            log.info("replan of what changed: %s among %d aircraft that keep their instructions",
+            log.info("%s: %s among %d aircraft that keep their instructions",
+                     "plan of the aircraft without one" if traffic.joining else "replan of what changed",
                      ", ".join(traffic.callsigns), len(traffic.fixed))
         req = PlanRequest(reason, now, plan_start, inputs, options, what_if, given, traffic)
         if not what_if:
@@ -171,15 +177,13 @@ class PlanningService:
                 self.in_flight, self.asked = req, False
         return req
 
-    def _straying(self, reason: str, explicit: bool) -> set[str] | None:
-        """The aircraft a replan of what changed serves (:attr:`ServiceRules.replan_what_changed`): those that
-        stray (:attr:`ReplanPolicy.straying`) when ``reason`` is a deviation, unless the replan before failed (then a
-        whole one) or the states are explicit."""
-        straying = self.policy.straying
-        if (not self.rules.replan_what_changed or explicit or self.failures_in_a_row > 0 or straying is None
-                or straying[0] != reason):
+    def _local(self, decided: tuple[str, set[str]] | None, reason: str, explicit: bool) -> set[str] | None:
+        """The aircraft a plan of some among the others serves (:attr:`ServiceRules.replan_what_changed`): those the
+        policy ``decided`` for ``reason`` (:attr:`ReplanPolicy.straying`, :attr:`ReplanPolicy.joining`), unless such
+        a plan failed last (then a whole one) or the states are explicit."""
+        if not self.rules.replan_what_changed or explicit or self.local_failed or decided is None:
             return None
-        return straying[1]
+        return decided[1] if decided[0] == reason else None
 
     def _replan_limit(self, options: PlanOptions, what_if: bool) -> float | None:
         """A replan's time limit: the rules' (:func:`replan_time_limit`), doubled after each failure in a row up to
@@ -225,6 +229,7 @@ class PlanningService:
         ``latency_s`` after it was asked: the policy backs off as after a failed plan, but the plans flown are not
         marked as kept."""
         with self._lock:
+            self.local_failed = self.in_flight is not None and self.in_flight.traffic is not None
             self.asked, self.planned, self.in_flight = False, True, None
             self.failures_in_a_row += 1
             self.book.last_arrival = now
@@ -241,6 +246,7 @@ class PlanningService:
                 return []
             self.in_flight = None
             self.latency_s = latency_s
+            self.local_failed = request.traffic is not None and (result is None or failure is not None)
             if result is None or failure is not None:
                 self.failures_in_a_row += 1
                 kept = self.book.failed(failure or "no result", now)

@@ -40,6 +40,9 @@ class ReplanPolicy:
         self.straying: tuple[str, set[str]] | None = None
         """(the reason, the aircraft) when the latest decision was a deviation: the one beyond the threshold and
         those beyond :data:`STRAYING_SHARE` of it; a replan of what changed may serve them."""
+        self.joining: tuple[str, set[str]] | None = None
+        """(the reason, the aircraft) when the latest decision was an aircraft without a plan: every aircraft tracked
+        that flies none; a plan of them among the others' plans may serve them."""
 
     def decide(self, now: float, tracks: Mapping[str, Track], flying: Mapping[str, Reference], *, busy: bool,
                planned: bool, last_arrival: float, first_track_at: float | None) -> str | None:
@@ -48,14 +51,16 @@ class ReplanPolicy:
         radar track's time (None: none yet)."""
         if busy or not tracks:
             return None
-        self.straying = None
+        self.straying = self.joining = None
         if not planned:
             return self._first_plan(now, tracks, first_track_at)
         if now - last_arrival < self.rules.min_interval_s:
             return None
-        for cs in tracks:
-            if cs not in flying:
-                return f"{cs} has no plan"
+        unplanned = [cs for cs in tracks if cs not in flying]
+        if unplanned:
+            reason = f"{unplanned[0]} has no plan" + (f" (and {len(unplanned) - 1} more)" if len(unplanned) > 1 else "")
+            self.joining = (reason, set(unplanned))
+            return reason
         deviations = self.deviations(tracks, flying)
         who = max(deviations, key=deviations.__getitem__, default="")
         if self.rules.deviation_nm > 0 and deviations.get(who, 0.0) > self.rules.deviation_nm:

@@ -7,11 +7,17 @@ what they fly (plans, holds, vectors): their paths are fixed in the replan (:mod
 whole replan is made instead when the change is not local: an aircraft tracked flies nothing or has flown past its
 plan's end, an aircraft was left out of the plan's inputs, the replan before failed, the aircraft affected are
 all those that fly plans, or a fallback (a vector) ends before the replanned aircraft land.
+
+Aircraft that fly no plan (new, holding, vectored, left out of a partial plan) join the others the same way: they
+are planned to land after everyone flying a plan, clear of those plans, which stay as they are
+(:func:`joining_traffic`; :func:`mal_planner.pipeline.among.plan_joining`). A whole plan of twenty aircraft takes
+minutes; a plan of the few without one takes seconds, so they stop holding sooner.
 """
 
 from __future__ import annotations
 
 from collections.abc import Mapping, Set
+from dataclasses import replace
 
 from mal_planner.scenario import Scenario
 from mal_planner.scenario.traffic import FixedPath, Traffic
@@ -70,3 +76,19 @@ def traffic_for(straying: Set[str], scenario: Scenario, instructions: Mapping[st
         return None  # a fallback that ends first (a vector): where the aircraft flies then is nobody's path yet
     return Traffic(tuple(paths[cs] for cs in sorted(replanned)),
                    tuple(p for cs, p in sorted(paths.items()) if cs not in replanned))
+
+
+def joining_traffic(joining: Set[str], scenario: Scenario, flying: Mapping[str, Reference], start: float
+                    ) -> Traffic | None:
+    """The traffic the ``joining`` aircraft (those of ``scenario`` that fly no plan) are planned among: everyone
+    else's plan from ``start`` on, fixed; None when a whole plan is due (nobody else flies a plan, an aircraft not
+    joining flies none, or a plan ends by ``start``)."""
+    others = [a for a in scenario.aircraft if a.callsign not in joining]
+    if not joining or not others or not joining <= {a.callsign for a in scenario.aircraft}:
+        return None
+    if any(a.callsign not in flying for a in others):
+        return None
+    paths = fixed_paths(replace(scenario, aircraft=tuple(others)), flying, flying, start)
+    if paths is None:
+        return None
+    return Traffic((), tuple(p for _, p in sorted(paths.items())), tuple(sorted(joining)))
