@@ -22,10 +22,11 @@ import logging
 import time
 from collections.abc import Sequence
 from dataclasses import replace
+from functools import partial
 
 from mal_planner.airspace_entry import inside_airspace
 from mal_planner.deadline import Deadline
-from mal_planner.errors import InvalidInput, PlanningFailed
+from mal_planner.errors import InvalidInput
 from mal_planner.initializer.sequencer import InitialPlan, InitialTrajectory, Sequencer
 from mal_planner.initializer.timed_paths import timed_guess
 from mal_planner.landing.guess import AircraftGuess, guess_along, guess_from_initial_plan
@@ -33,6 +34,7 @@ from mal_planner.landing.sequential import Reguess, SequentialOptimizer
 from mal_planner.options import PlanOptions, resolve_flown, scenario_for
 from mal_planner.pipeline.planner import Planner, PlanResult
 from mal_planner.pipeline.refine import verify_and_refine
+from mal_planner.pipeline.reguess import another_guess
 from mal_planner.scales import Scales
 from mal_planner.scenario import Scenario
 from mal_planner.scenario.traffic import FixedPath, Traffic
@@ -81,17 +83,8 @@ def plan_joining(planner: Planner, scenario: Scenario, traffic: Traffic, start_t
     initial = InitialPlan(tuple(paths), str(opts.initializer), opts.seed, {}, {})
     guesses = guess_from_initial_plan(scenario, paths, list(slots.values()))
 
-    def reguess(scenario: Scenario, callsign: str, landing_time: float, seen, attempt: int) -> AircraftGuess | None:
-        """A new initial path clear of the plans made so far (the sequential strategy's recovery 'another guess')."""
-        seed = None if opts.seed is None else opts.seed + 7919 * (attempt + 1)
-        try:
-            path = sequencer.replan_one(scenario, callsign, landing_time, seen, seed, deadline=deadline)
-        except PlanningFailed as exc:
-            log.info("%s: no new initial path (%s)", callsign, exc)
-            return None
-        return guess_from_initial_plan(scenario, [path], [landing_time])[0]
-
-    return _solve_among(opts, scenario, guesses, tuple(traffic.fixed), deadline, initial, start_time, reguess)
+    return _solve_among(opts, scenario, guesses, tuple(traffic.fixed), deadline, initial, start_time,
+                        partial(another_guess, opts.initializer, opts.seed, deadline))
 
 
 def _prepared(planner: Planner, scenario: Scenario) -> tuple[PlanOptions, Deadline, Scenario, Scales]:

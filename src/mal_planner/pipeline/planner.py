@@ -8,17 +8,18 @@ from dataclasses import dataclass, replace
 
 from mal_planner.airspace_entry import inside_airspace
 from mal_planner.deadline import Deadline
-from mal_planner.errors import Failure, InvalidInput, Outcome, PlanningError, PlanningFailed, TimeLimitReached
+from mal_planner.errors import Failure, InvalidInput, Outcome, PlanningError, TimeLimitReached
 from mal_planner.initializer.planners import known_specs
-from mal_planner.initializer.sequencer import InitialPlan, Sequencer, plan_initial
+from mal_planner.initializer.sequencer import InitialPlan, plan_initial
 from mal_planner.landing import LandingOptions, LandingResult
 from mal_planner.landing.aircraft_plans import planned_prefix
-from mal_planner.landing.guess import AircraftGuess, guess_from_initial_plan
+from mal_planner.landing.guess import AircraftGuess
 from mal_planner.landing.sequential import SequentialOptimizer
 from mal_planner.landing.solve import LandingOptimizer, make_guesses, shift_guesses, uses_sequential
 from mal_planner.landing.strategy import make_optimizer
 from mal_planner.options import PlanOptions, resolve_flown, scenario_for
 from mal_planner.pipeline.refine import verify_and_refine
+from mal_planner.pipeline.reguess import another_guess
 from mal_planner.scales import Scales
 from mal_planner.scenario import Scenario
 from mal_planner.sequencing.schedule import check_request
@@ -282,14 +283,8 @@ class Planner:
     def _reguess(self, scenario: Scenario, callsign: str, landing_time: float, traffic, attempt: int
                  ) -> AircraftGuess | None:
         """A new initial guess of one aircraft, clear of ``traffic`` (the sequential strategy's first recovery)."""
-        seed = None if self.options.seed is None else self.options.seed + 7919 * (attempt + 1)
-        try:
-            path = Sequencer(self.options.initializer).replan_one(scenario, callsign, landing_time, traffic, seed,
-                                                                  deadline=self._deadline)
-        except PlanningFailed as exc:
-            log.info("%s: no new initial path (%s)", callsign, exc)
-            return None
-        return guess_from_initial_plan(scenario, [path], [landing_time])[0]
+        return another_guess(self.options.initializer, self.options.seed, self._deadline, scenario, callsign,
+                             landing_time, traffic, attempt)
 
     def _joint_attempt(self, scenario: Scenario, start_time: float, deadline: Deadline) -> LandingResult:
         joint = replace(self.options.landing, strategy="joint")
