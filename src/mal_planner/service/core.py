@@ -65,7 +65,7 @@ class PlanningService:
         self.book = PlanBook(rules, self._estimate, search_s=Scales.of(scenario).time_s,
                              follow_nm=0.5 * scenario.separation_nm)
         self.intake = TrackIntake(scenario, rules, plan_of=self.book.instruction)
-        self.guard = Guard.of(scenario, rules.deviation_nm)
+        self.guard = Guard.of(self._guarded(), rules.deviation_nm)
         self.book.on_handout = self.intake.filter.replanned
         self.policy = ReplanPolicy(rules)
         self.latency_s = 0.0
@@ -264,16 +264,18 @@ class PlanningService:
         """The scenario plans start from: the file's, with the no-fly zones and the wind given since, and the options'
         wake table and sequencing strategy (:func:`~mal_planner.options.scenario_for`)."""
         with self._lock:
-            base = replace(self.scenario, obstacles=self.obstacles)
-            if self.wind != base.wind:
-                base = base.with_wind(self.wind)
-            return scenario_for(self.options, base)
+            return scenario_for(self.options, self._guarded())
+
+    def _guarded(self) -> Scenario:
+        """The file's scenario with the no-fly zones and the wind given since (what the guard watches)."""
+        base = replace(self.scenario, obstacles=self.obstacles)
+        return base if self.wind == base.wind else base.with_wind(self.wind)
 
     def update_zone(self, name: str, zone: Superquadric | None) -> str:
         """Add, replace (``zone``) or remove (None) a no-fly zone; returns what changed (ValueError: no such zone)."""
         with self._lock:
             self.obstacles, what = apply_zone(self.obstacles, name, zone)
-            self.guard.scenario = replace(self.scenario, obstacles=self.obstacles)
+            self.guard.update(self._guarded())
             return what
 
     def update_wind(self, wind: tuple[float, float]) -> tuple[str, str | None]:
@@ -290,6 +292,7 @@ class PlanningService:
             old, self.wind = self.wind, (float(wind[0]), float(wind[1]))
             if self.wind == old:
                 return "", None
+            self.guard.update(self._guarded())
             heading = math.degrees(math.atan2(-wind[1], -wind[0])) % 360.0 if speed > 0 else 0.0
             what = f"wind {nm_per_s_to_kt(speed):.1f} kt from heading {heading:.0f} deg ({self.rules.frame_id})"
             return what, wind_change_reason(old, self.wind, self.rules, what) if self.book.flying else None
@@ -306,7 +309,7 @@ class PlanningService:
             self.intake.filter.time_constant_s = rules.filter_time_constant_s
             self.book.rules = rules
             self.policy.rules = rules
-            self.guard = Guard.of(replace(self.scenario, obstacles=self.obstacles), rules.deviation_nm)
+            self.guard = Guard.of(self._guarded(), rules.deviation_nm)
             self.options = service_plan_options(self._given_options, self.scenario, rules, flown=self.flown)
 
     def radar_now(self, clock: float) -> float | None:

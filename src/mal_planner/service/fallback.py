@@ -1,10 +1,13 @@
 """An instruction for an aircraft without a valid plan: a hold, checked against everyone's instructions first.
 
 A new aircraft, one left out of a plan or one whose plan was withdrawn still needs an instruction: as arrival
-managers and controllers do, it holds until it is planned. The hold is a racetrack's limit, an orbit of
-:data:`HOLD_RADII` turn radii (a terminal area at 30 deg: 0.87 nm at 21 deg of bank, inside ICAO's 25 deg for
-holds; the thesis: 0.45 nm at 34 deg), entered from where the aircraft is: at once or after a straight leg, right
-or left turns, at its level or (with a vertical minimum) stacked a vertical minimum above or below. The first
+managers and controllers do, it holds until it is planned. The hold is a racetrack's limit, an orbit around a
+fix on the ground of :data:`HOLD_RADII` of the aircraft's own turn radii at its largest ground speed (airspeed plus
+the wind): at 30 deg of bank the bank of the orbit is at most 21 deg, inside ICAO's 25 deg for holds (a terminal
+area's 208 kt aircraft in a 20 kt wind: 1.98 nm). Drawn for the scenario's tightest turn instead, a fast aircraft
+could not fly it and strayed up to 3 nm from where the service predicted it. It is entered from where the aircraft
+is: at once or after a straight leg, right or left turns, at its level or (with a vertical minimum) stacked a
+vertical minimum above or below. The first
 candidate that keeps the tracking margin (:attr:`FallbackRules.margin`) from everyone's predicted paths over the
 look-ahead, stays inside the airspace and out of the no-fly zones over a whole orbit, is given; when none does, the
 one with the most separation (the safety net then watches it).
@@ -18,7 +21,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from mal_planner.scales import Scales
+from mal_planner.scales import Scales, level_turn_radius
 from mal_planner.scenario import Scenario
 from mal_planner.service.conflicts import Minima, Picture, closest_to_others
 from mal_planner.service.manoeuvres import holding_pattern
@@ -26,7 +29,8 @@ from mal_planner.service.tracks import Track
 from mal_planner.trajectory import Reference
 
 HOLD_RADII = 1.5
-"""Hold radius in turn radii at the bank limit (the bank of the orbit: atan(tan(limit) / 1.5))."""
+"""Hold and vector turn radius in the aircraft's turn radii at the bank limit (the bank of a turn in still air:
+atan(tan(limit) / 1.5)); a hold's at its largest ground speed, airspeed plus wind."""
 LOOK_AHEAD_TURN_TIMES = 8.0
 """How far ahead instructions are checked and conflicts predicted (a terminal area 110 s, the thesis 60 s: an STCA
 looks about two minutes ahead)."""
@@ -61,11 +65,18 @@ class FallbackRules:
     """Separation the fallback keeps beyond the minimum, in minima: twice the deviation threshold, as plans keep."""
     edge_nm: float
     """How far inside the airspace the fallback stays: the deviation threshold."""
+    radius_per_speed2: float
+    """Turn radius at the bank limit over the airspeed squared (1 / (g tan(bank limit))), the scenario's largest: a
+    radar track gives an aircraft's speed, not its bank limit."""
+    wind: tuple[float, float] = (0.0, 0.0)
+    """The wind the service knows (nm/s): holds and vectors are drawn as flown in it."""
 
     @classmethod
     def of(cls, scenario: Scenario, deviation_nm: float) -> FallbackRules:
         minima = Minima.of(scenario)
-        return cls(Scales.of(scenario), minima, 2.0 * deviation_nm / minima.horizontal_nm, deviation_nm)
+        k = max(level_turn_radius(a) / a.speed**2 for a in scenario.aircraft)
+        return cls(Scales.of(scenario), minima, 2.0 * deviation_nm / minima.horizontal_nm, deviation_nm, k,
+                   (float(scenario.wind[0]), float(scenario.wind[1])))
 
     @property
     def step_s(self) -> float:
@@ -74,8 +85,14 @@ class FallbackRules:
     def look_ahead(self, now: float) -> np.ndarray:
         return now + np.arange(0.0, self.scales.seconds(LOOK_AHEAD_TURN_TIMES) + 1e-9, self.step_s)
 
-    def radius(self) -> float:
-        return HOLD_RADII * self.scales.length_nm
+    def turn_radius(self, speed: float) -> float:
+        """A vector's turn radius (through the air mass) at airspeed ``speed``."""
+        return HOLD_RADII * self.radius_per_speed2 * speed**2
+
+    def hold_radius(self, speed: float) -> float:
+        """A hold's radius (on the ground) at airspeed ``speed``: the bank of a vector's turn at the largest ground
+        speed."""
+        return HOLD_RADII * self.radius_per_speed2 * (speed + math.hypot(*self.wind)) ** 2
 
 
 def fits_airspace(scenario: Scenario, points: np.ndarray, edge_nm: float) -> bool:
@@ -101,13 +118,14 @@ def _levels(scenario: Scenario, z: float, rules: FallbackRules) -> Iterator[floa
 
 def hold_candidates(track: Track, scenario: Scenario, rules: FallbackRules, now: float) -> Iterator[Reference]:
     """The holds to try, in order of preference (the least change first)."""
-    r = rules.radius()
+    r = rules.hold_radius(track.speed)
     for level in _levels(scenario, float(track.state[2]), rules):
         for legs in ENTRY_LEGS_TURN_TIMES:
             for right in (True, False):
                 yield holding_pattern(track.state, track.speed, r, right=right,
                                       straight_s=rules.scales.seconds(legs), level=level, t0=now,
-                                      duration_s=rules.scales.seconds(HOLD_TURN_TIMES), step_s=rules.step_s)
+                                      duration_s=rules.scales.seconds(HOLD_TURN_TIMES), step_s=rules.step_s,
+                                      wind=rules.wind)
 
 
 def choose_hold(track: Track, others: Picture, scenario: Scenario, rules: FallbackRules, now: float, reason: str
@@ -115,7 +133,7 @@ def choose_hold(track: Track, others: Picture, scenario: Scenario, rules: Fallba
     """The hold for ``track``'s aircraft (see the module docstring); ``others``: everyone else's predicted paths on
     :meth:`FallbackRules.look_ahead` times."""
     best: tuple[float, Reference] | None = None
-    orbit_s = 2.0 * math.pi * rules.radius() / track.speed
+    orbit_s = 2.0 * math.pi * rules.hold_radius(track.speed) / (track.speed - math.hypot(*rules.wind))
     times = np.arange(now, now + rules.scales.seconds(max(ENTRY_LEGS_TURN_TIMES)) + orbit_s, rules.step_s)
     for ref in hold_candidates(track, scenario, rules, now):
         if not fits_airspace(scenario, ref.positions(times), rules.edge_nm):

@@ -57,7 +57,13 @@ class Guard:
 
     @classmethod
     def of(cls, scenario: Scenario, deviation_nm: float) -> Guard:
+        """The guard of ``scenario`` (its no-fly zones and the wind the service knows)."""
         return cls(scenario, FallbackRules.of(scenario, deviation_nm))
+
+    def update(self, scenario: Scenario) -> None:
+        """New no-fly zones or a new wind (``scenario``'s): the next holds and vectors are drawn in them."""
+        self.scenario = scenario
+        self.rules = FallbackRules.of(scenario, self.rules.edge_nm)
 
     def _picture(self, tracks: Mapping[str, Track], book: PlanBook, now: float) -> Picture:
         scales = self.rules.scales

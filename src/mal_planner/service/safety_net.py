@@ -77,9 +77,10 @@ def resolution_vectors(tracks: Mapping[str, Track], dv: Mapping[str, np.ndarray]
         h = float(vectored.get(cs, tr.state[4]))
         v = tr.speed * np.array([math.cos(h), math.sin(h)]) + change
         until = max(c.t_closest for c in conflicts if cs in (c.a, c.b))
-        ref = vector(tr.state, tr.speed, rules.radius(), math.atan2(v[1], v[0]),
+        ref = vector(tr.state, tr.speed, rules.turn_radius(tr.speed), math.atan2(v[1], v[0]),
                      level=min(max(float(tr.state[2]), lo), hi), t0=now,
-                     duration_s=until - now + rules.scales.seconds(VECTOR_TURN_TIMES), step_s=rules.step_s)
+                     duration_s=until - now + rules.scales.seconds(VECTOR_TURN_TIMES), step_s=rules.step_s,
+                     wind=rules.wind)
         others = [c.b if c.a == cs else c.a for c in conflicts if cs in (c.a, c.b)]
         inside = fits_airspace(scenario, ref.positions(np.arange(now, ref.end, rules.step_s)), 0.0)
         note = f"clear of {', '.join(sorted(set(others)))}" + ("" if inside else LEAVES)
@@ -97,8 +98,8 @@ def turned(fb: Fallback, track: Track, rules: FallbackRules, turn_deg: float, no
     """``fb``'s vector with its heading turned by ``turn_deg`` (the same level and length)."""
     ref = fb.reference
     heading = float(ref.table[-1, 4]) + math.radians(turn_deg)
-    out = vector(track.state, track.speed, rules.radius(), heading, level=float(ref.table[-1, 2]), t0=now,
-                 duration_s=ref.end - now, step_s=rules.step_s)
+    out = vector(track.state, track.speed, rules.turn_radius(track.speed), heading, level=float(ref.table[-1, 2]),
+                 t0=now, duration_s=ref.end - now, step_s=rules.step_s, wind=rules.wind)
     base = fb.reason.replace(LEAVES, "")
     return Fallback(fb.callsign, "vector", out, now, fb.reason if turn_deg == 0.0 else
                     f"{base}, turned {turn_deg:+.0f} deg from the MVP heading", fb.clearance)
