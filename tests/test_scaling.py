@@ -124,3 +124,30 @@ def test_a_sequential_plan_that_stops_hands_out_the_aircraft_planned_before() ->
     assert [tr.callsign for tr in prefix.trajectories] == first_two
     assert set(prefix.landing_times) == set(prefix.gate_times) == set(prefix.required_landing_times) == set(first_two)
     assert planned_prefix(replace(result.landing, parts=[replace(parts[0], success=False)])) is None
+    # A fallback that plans fewer aircraft does not replace it, and a partial plan is not followed by the joint NLP
+    # (which would take the replan's time and leave nothing to hand out).
+    from mal_planner.pipeline.partial import better as _better
+
+    fewer = replace(stopped, parts=[parts[0], replace(parts[1], success=False)])
+    assert _better(stopped, fewer, partial=True) is stopped and _better(fewer, stopped, partial=True) is stopped
+    assert _better(stopped, fewer, partial=False) is fewer and _better(stopped, result.landing, True) is result.landing
+    named = [name for name, _ in Planner(PlanOptions(landing=landing, partial=True))._attempts(scenario, warm=False)]
+    assert not any("joint" in name for name in named) and "solve" in named
+    named = [name for name, _ in Planner(PlanOptions(landing=landing))._attempts(scenario, warm=False)]
+    assert "joint solve" in named
+
+
+def test_a_partial_plan_leaves_out_an_aircraft_that_finds_no_plan_and_plans_the_others() -> None:
+    """Partial plans (the service's): the first aircraft in landing order cannot make its slot (157 s, where its
+    turns need about 160 s) even after the recoveries; it is left out and the two after it are planned without it,
+    verified (the mesh refined where the verification asks), and handed out with it unplanned. Without partial plans
+    the same request fails."""
+    scenario = load_scenario("scenarios/thesis.yaml")
+    a1, a2, a3 = scenario.aircraft
+    scenario = replace(scenario, aircraft=(replace(a1, landing_time=175.0), replace(a2, landing_time=157.0),
+                                           replace(a3, landing_time=200.0)))
+    landing = replace(PlanOptions().landing, strategy="sequential")
+    result = Planner(PlanOptions(seed=0, landing=landing, partial=True)).plan(scenario)
+    assert result.unplanned == ("A2",) and result.verified
+    assert sorted(tr.callsign for tr in result.landing.trajectories) == ["A1", "A3"]
+    assert Planner(PlanOptions(seed=0, landing=landing)).plan(scenario).failure is not None

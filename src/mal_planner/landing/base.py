@@ -34,6 +34,10 @@ class LandingOptions:
     """The guesses are the previous plan (set by :class:`mal_planner.pipeline.Planner` on replans): an aircraft that
     finds no plan for its slot has most likely fallen behind that plan (gusts), so the sequential strategy's
     recovery 'later landing' comes first."""
+    leave_out_failed: bool = False
+    """Sequential strategy: an aircraft that finds no plan, recoveries included, is left out and the ones after it
+    are planned without it (set by the Planner for partial plans: the service holds it and plans it later); False:
+    the solve stops there."""
     segments: int = 4
     """Initial mesh without ``segment_turn_times``: this many segments per phase ..."""
     degree: int = 6
@@ -100,6 +104,8 @@ class LandingResult:
     strategy: str = "joint"
     recoveries: list = field(default_factory=list)
     """Sequential decomposition: the recoveries tried (:class:`mal_planner.landing.recovery.Recovery`)."""
+    left_out: tuple[str, ...] = ()
+    """Sequential decomposition: aircraft left out for want of a plan (:attr:`LandingOptions.leave_out_failed`)."""
 
     def stats(self) -> dict:
         return {

@@ -66,6 +66,8 @@ class _Pass:
     """The previous plans kept as they were (their effort is not counted again)."""
     flown: Flown = field(default_factory=list)
     recoveries: list[Recovery] = field(default_factory=list)
+    left_out: list[str] = field(default_factory=list)
+    """Aircraft that found no plan and were left out (:attr:`LandingOptions.leave_out_failed`)."""
 
     def fly(self, part: LandingResult) -> None:
         """``part``'s aircraft is planned: the later ones keep clear of it."""
@@ -218,17 +220,29 @@ class SequentialOptimizer:
                     continue
                 if step is not None:
                     part = step
+            if not part.success and options.leave_out_failed and meshes is None and only is None:
+                log.warning("sequential: %s found no plan (%s); left out, the others planned without it",
+                            run.order[i].callsign, part.status)
+                run.left_out.append(run.order.pop(i).callsign)
+                continue
             run.parts.append(part)
             if not part.success:
                 log.warning("sequential: %s found no plan (%s)", run.order[i].callsign, part.status)
                 break
             run.fly(part)
             i += 1
-        wall = time.perf_counter() - t_start
+        return self._combined(scenario, run, time.perf_counter() - t_start)
+
+    def _combined(self, scenario: Scenario, run: _Pass, wall: float) -> LandingResult:
+        """The pass's plans as one result: failed when an aircraft was left out (its parts the plans of the others,
+        which :func:`~mal_planner.landing.aircraft_plans.planned_prefix` hands out)."""
         solved = [p for p in run.parts if all(p is not k for k in run.kept_parts)]
         self.layout = layout_for(scenario, run.order)
         result = combine(run.parts, len(run.order), self.layout, wall, solved=solved)
         result.recoveries = run.recoveries
+        if run.left_out and result.success:
+            result = replace(result, success=False, status=f"{', '.join(run.left_out)}: left out (no plan)",
+                             left_out=tuple(run.left_out))
         return result
 
     def _plan_next(self, scenario: Scenario, run: _Pass, i: int, meshes: dict | None, deadline,

@@ -12,19 +12,19 @@ from mal_planner.errors import Failure, InvalidInput, Outcome, PlanningError, Ti
 from mal_planner.initializer.planners import known_specs
 from mal_planner.initializer.sequencer import InitialPlan, plan_initial
 from mal_planner.landing import LandingOptions, LandingResult
-from mal_planner.landing.aircraft_plans import planned_prefix
 from mal_planner.landing.guess import AircraftGuess
 from mal_planner.landing.sequential import SequentialOptimizer
 from mal_planner.landing.solve import LandingOptimizer, make_guesses, shift_guesses, uses_sequential
 from mal_planner.landing.strategy import make_optimizer
 from mal_planner.options import PlanOptions, resolve_flown, scenario_for
+from mal_planner.pipeline.partial import better, others_planned, partial_plan
 from mal_planner.pipeline.refine import verify_and_refine
 from mal_planner.pipeline.reguess import another_guess
 from mal_planner.scales import Scales
 from mal_planner.scenario import Scenario
 from mal_planner.sequencing.schedule import check_request
 from mal_planner.trajectory import Trajectory
-from mal_planner.verification import VerificationReport, verify
+from mal_planner.verification import VerificationReport
 
 log = logging.getLogger("mal_planner")
 
@@ -117,7 +117,9 @@ class Planner:
     radar states may no longer reach the times: an aircraft fell behind its plan) a solve in which the optimizer
     chooses the landing times, then, when the replan before failed as well, a cold solve of the same order, then a
     fresh initializer. A first plan whose solve fails is tried once more from the initializer with another seed,
-    then, where the schedule fixed the landing times, with times the optimizer chooses. Aircraft within
+    then, where the schedule fixed the landing times, with times the optimizer chooses. A failed sequential solve
+    is followed by the joint NLP of the same order, except for partial plans (:attr:`PlanOptions.partial`), which
+    keep the attempt that planned the most aircraft before it failed. Aircraft within
     ``landed_within_turn_times`` of their last planned landing leave the plan quietly.
     """
 
@@ -178,15 +180,13 @@ class Planner:
             landing = self._optimize(scenario, initial, warm, start_time, deadline)
             initial = self._initial or initial
             if opts.partial and landing is not None and not landing.success:
-                scenario, landing, initial, unplanned = _partial(scenario, landing, initial)
+                scenario, landing, initial, unplanned = partial_plan(scenario, landing, initial)
             timings["optimizer_s"] = time.perf_counter() - t1
         report = None
-        if landing is not None and landing.success and opts.verify and unplanned:  # as planned: no re-solve
-            report = verify(scenario, landing.trajectories, opts.tolerances)
-            log.info("verification of the partial plan: %s", "verified" if report.verified else
-                     "; ".join(report.reasons[:5]))
-        elif landing is not None and landing.success and opts.verify:
-            landing, report = verify_and_refine(scenario, landing, self._optimizer, opts, timings, deadline)
+        if landing is not None and landing.success and opts.verify:
+            # A partial plan's mesh is refined by a sequential optimizer, which re-solves the parts it is given.
+            refiner = self._optimizer if not unplanned or isinstance(self._optimizer, SequentialOptimizer) else None
+            landing, report = verify_and_refine(scenario, landing, refiner, opts, timings, deadline)
         result = PlanResult(scenario, opts, initial, landing, report, timings, start_time,
                             timed_out=deadline.expired() or self._stopped is not None, stopped=self._stopped,
                             unplanned=unplanned)
@@ -222,34 +222,7 @@ class Planner:
     def _optimize(self, scenario: Scenario, initial: InitialPlan, warm: bool, start_time: float,
                   deadline: Deadline) -> LandingResult | None:
         """Solve, falling back step by step (see the class docstring); None if nothing was tried."""
-        opts = self.options
-        attempts: list[tuple[str, object]] = []
-        # Planned one aircraft at a time, a failure falls back to the joint NLP of the same order first.
-        sequential = uses_sequential(opts.landing, len(scenario.aircraft))
-        # Optimizer-chosen landing times: when the planner made the schedule, or on a replan, where the aircraft
-        # may have drifted (radar) so that the scenario's times can no longer be met: a safe plan at other
-        # times beats none (the plan reports its times; a warning says the fixed ones were given up).
-        free_fallback = opts.landing.fixed_landing_times and (warm or any(a.landing_time is None
-                                                                          for a in scenario.aircraft))
-        if warm:
-            attempts.append(("warm replan", self._warm_attempt))
-            if free_fallback:  # a warm replan fails mostly for an aircraft that fell behind: times, not paths
-                attempts.append(("optimizer-chosen landing times", self._free_times_attempt))
-            # Starting over only when the replan before failed too: in the closed-loop campaigns (about 1,000
-            # replans) these never served one that the landing times could not (0 of 21) and took the failing
-            # replans to the time limit; a replan that fails leaves the aircraft on the plans they fly.
-            if self._replan_failed or not free_fallback:
-                attempts.append(("cold solve of the same order", self._cold_same_order))
-                if sequential:
-                    attempts.append(("joint solve of the same order", self._joint_same_order))
-                attempts.append(("fresh initializer", self._fresh_initializer))
-        else:
-            attempts.append(("solve", self._cold_attempt))
-            if sequential:
-                attempts.append(("joint solve", self._joint_attempt))
-            attempts.append(("solve from another initializer seed", self._reseeded_attempt))
-        if free_fallback and not warm:
-            attempts.append(("optimizer-chosen landing times", self._free_times_attempt))
+        attempts = self._attempts(scenario, warm)
         landing = None
         self._initial = initial
         for name, attempt in attempts:
@@ -267,17 +240,52 @@ class Planner:
                 continue
             if candidate is None:
                 continue
-            landing = candidate if landing is None or candidate.success or not landing.success else landing
-            if candidate.success:
+            landing = better(landing, candidate, self.options.partial)
+            if candidate.success or others_planned(candidate):
                 break
             log.warning("%s: %s; trying the next fallback", name, candidate.status)
         return landing
 
+    def _attempts(self, scenario: Scenario, warm: bool) -> list[tuple[str, object]]:
+        """The solves to try in turn, with their names (see the class docstring)."""
+        opts = self.options
+        attempts: list[tuple[str, object]] = []
+        # Planned one aircraft at a time, a failure falls back to the joint NLP of the same order first.
+        # Not where a partial plan is wanted (the service): there the joint NLP of many aircraft runs out of the
+        # replan's time (15-aircraft closed-loop campaigns: 0 of 13 served, 34 times no time was left for it) and the
+        # aircraft planned before the sequential solve failed are handed out instead.
+        joint_fallback = uses_sequential(opts.landing, len(scenario.aircraft)) and not opts.partial
+        # Optimizer-chosen landing times: when the planner made the schedule, or on a replan, where the aircraft
+        # may have drifted (radar) so that the scenario's times can no longer be met: a safe plan at other
+        # times beats none (the plan reports its times; a warning says the fixed ones were given up).
+        free_fallback = opts.landing.fixed_landing_times and (warm or any(a.landing_time is None
+                                                                          for a in scenario.aircraft))
+        if warm:
+            attempts.append(("warm replan", self._warm_attempt))
+            if free_fallback:  # a warm replan fails mostly for an aircraft that fell behind: times, not paths
+                attempts.append(("optimizer-chosen landing times", self._free_times_attempt))
+            # Starting over only when the replan before failed too: in the closed-loop campaigns (about 1,000
+            # replans) these never served one that the landing times could not (0 of 21) and took the failing
+            # replans to the time limit; a replan that fails leaves the aircraft on the plans they fly.
+            if self._replan_failed or not free_fallback:
+                attempts.append(("cold solve of the same order", self._cold_same_order))
+                if joint_fallback:
+                    attempts.append(("joint solve of the same order", self._joint_same_order))
+                attempts.append(("fresh initializer", self._fresh_initializer))
+        else:
+            attempts.append(("solve", self._cold_attempt))
+            if joint_fallback:
+                attempts.append(("joint solve", self._joint_attempt))
+            attempts.append(("solve from another initializer seed", self._reseeded_attempt))
+        if free_fallback and not warm:
+            attempts.append(("optimizer-chosen landing times", self._free_times_attempt))
+        return attempts
+
     def _new_optimizer(self, scenario: Scenario, guesses, landing_options: LandingOptions | None = None
                        ) -> LandingOptimizer | SequentialOptimizer:
         options = landing_options or self.options.landing
-        self._optimizer = make_optimizer(scenario, guesses, replace(options, replanning=self._replanning),
-                                         self._reguess)
+        options = replace(options, replanning=self._replanning, leave_out_failed=self.options.partial)
+        self._optimizer = make_optimizer(scenario, guesses, options, self._reguess)
         return self._optimizer
 
     def _reguess(self, scenario: Scenario, callsign: str, landing_time: float, traffic, attempt: int
@@ -346,21 +354,6 @@ class Planner:
         guesses = (self._previous_guesses(scenario, start_time) if self._replanning
                    else make_guesses(scenario, self._initial, free))
         return self._new_optimizer(scenario, guesses, free).solve(scenario, deadline=deadline)
-
-def _partial(scenario: Scenario, landing: LandingResult, initial: InitialPlan
-             ) -> tuple[Scenario, LandingResult, InitialPlan, tuple[str, ...]]:
-    """A failed sequential plan cut to the aircraft it planned (:attr:`PlanOptions.partial`), with those left
-    unplanned; as it was (none unplanned) when it planned none."""
-    part = planned_prefix(landing)
-    if part is None:
-        return scenario, landing, initial, ()
-    names = {tr.callsign for tr in part.trajectories}
-    unplanned = tuple(a.callsign for a in scenario.aircraft if a.callsign not in names)
-    log.warning("partial plan: %d of %d aircraft planned (%s); %s left unplanned", len(names),
-                len(scenario.aircraft), landing.status, ", ".join(unplanned))
-    kept = replace(scenario, aircraft=tuple(a for a in scenario.aircraft if a.callsign in names))
-    return kept, part, initial.only(names), unplanned
-
 
 def _key(scenario: Scenario) -> tuple[str, ...]:
     return tuple(sorted(a.callsign for a in scenario.aircraft))

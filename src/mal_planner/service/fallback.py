@@ -7,10 +7,11 @@ the wind): at 30 deg of bank the bank of the orbit is at most 21 deg, inside ICA
 area's 208 kt aircraft in a 20 kt wind: 1.98 nm). Drawn for the scenario's tightest turn instead, a fast aircraft
 could not fly it and strayed up to 3 nm from where the service predicted it. It is entered from where the aircraft
 is: at once or after a straight leg, right or left turns, at its level or (with a vertical minimum) stacked a
-vertical minimum above or below. The first
-candidate that keeps the tracking margin (:attr:`FallbackRules.margin`) from everyone's predicted paths over the
-look-ahead, stays inside the airspace and out of the no-fly zones over a whole orbit, is given; when none does, the
-one with the most separation (the safety net then watches it).
+vertical minimum above or below, tighter where the standard one does not fit. The first candidate that keeps the
+tracking margin (:attr:`FallbackRules.margin`) from everyone's predicted paths over the look-ahead, stays inside the
+airspace and out of the no-fly zones over a whole orbit, is given; when none does, the least bad: out of the no-fly
+zones first, then clear of a predicted loss of separation, then inside the airspace's box, then the most separation
+(the safety net then watches it).
 """
 
 from __future__ import annotations
@@ -36,6 +37,9 @@ LOOK_AHEAD_TURN_TIMES = 8.0
 looks about two minutes ahead)."""
 STEP_TURN_TIMES = 0.25
 """The prediction's time step (a terminal area 3.4 s)."""
+TIGHTER_HOLD_RADII = (1.25, 1.1)
+"""Tighter holds tried where the standard one does not fit (banks at the largest ground speed of 25 and 28 deg at a
+30 deg limit)."""
 HOLD_TURN_TIMES = 100.0
 """A hold is drawn this long (a terminal area 23 min) and renewed before it ends."""
 ENTRY_LEGS_TURN_TIMES = (0.0, 2.0, 4.0, 8.0)
@@ -89,10 +93,10 @@ class FallbackRules:
         """A vector's turn radius (through the air mass) at airspeed ``speed``."""
         return HOLD_RADII * self.radius_per_speed2 * speed**2
 
-    def hold_radius(self, speed: float) -> float:
-        """A hold's radius (on the ground) at airspeed ``speed``: the bank of a vector's turn at the largest ground
-        speed."""
-        return HOLD_RADII * self.radius_per_speed2 * (speed + math.hypot(*self.wind)) ** 2
+    def hold_radius(self, speed: float, radii: float = HOLD_RADII) -> float:
+        """A hold's radius (on the ground) at airspeed ``speed``: ``radii`` turn radii at the largest ground speed
+        (by default the bank of a vector's turn)."""
+        return radii * self.radius_per_speed2 * (speed + math.hypot(*self.wind)) ** 2
 
 
 def fits_airspace(scenario: Scenario, points: np.ndarray, edge_nm: float) -> bool:
@@ -117,38 +121,44 @@ def _levels(scenario: Scenario, z: float, rules: FallbackRules) -> Iterator[floa
 
 
 def hold_candidates(track: Track, scenario: Scenario, rules: FallbackRules, now: float) -> Iterator[Reference]:
-    """The holds to try, in order of preference (the least change first)."""
-    r = rules.hold_radius(track.speed)
+    """The holds to try, in order of preference (the least change first): at the aircraft's level before another,
+    the fix at the aircraft before one ahead, the standard radius before a tighter one (:data:`TIGHTER_HOLD_RADII`,
+    for a corner of the airspace), right turns before left."""
     for level in _levels(scenario, float(track.state[2]), rules):
         for legs in ENTRY_LEGS_TURN_TIMES:
-            for right in (True, False):
-                yield holding_pattern(track.state, track.speed, r, right=right,
-                                      straight_s=rules.scales.seconds(legs), level=level, t0=now,
-                                      duration_s=rules.scales.seconds(HOLD_TURN_TIMES), step_s=rules.step_s,
-                                      wind=rules.wind)
+            for radii in (HOLD_RADII, *TIGHTER_HOLD_RADII):
+                for right in (True, False):
+                    yield holding_pattern(track.state, track.speed, rules.hold_radius(track.speed, radii),
+                                          right=right, straight_s=rules.scales.seconds(legs), level=level, t0=now,
+                                          duration_s=rules.scales.seconds(HOLD_TURN_TIMES), step_s=rules.step_s,
+                                          wind=rules.wind)
 
 
 def choose_hold(track: Track, others: Picture, scenario: Scenario, rules: FallbackRules, now: float, reason: str
                 ) -> Fallback:
     """The hold for ``track``'s aircraft (see the module docstring); ``others``: everyone else's predicted paths on
-    :meth:`FallbackRules.look_ahead` times."""
-    best: tuple[float, Reference] | None = None
+    :meth:`FallbackRules.look_ahead` times. The first candidate inside the airspace (by its edge margin) and clear of
+    the others by the margin; else the least bad (:func:`_badness`)."""
     orbit_s = 2.0 * math.pi * rules.hold_radius(track.speed) / (track.speed - math.hypot(*rules.wind))
     times = np.arange(now, now + rules.scales.seconds(max(ENTRY_LEGS_TURN_TIMES)) + orbit_s, rules.step_s)
+    scored = []
     for ref in hold_candidates(track, scenario, rules, now):
-        if not fits_airspace(scenario, ref.positions(times), rules.edge_nm):
-            continue
+        points = ref.positions(times)
         clearance, _ = closest_to_others(ref.positions(others.times), others, rules.minima, track.callsign)
-        if clearance >= 1.0 + rules.margin:
+        if clearance >= 1.0 + rules.margin and fits_airspace(scenario, points, rules.edge_nm):
             return Fallback(track.callsign, "hold", ref, now, reason, clearance)
-        if best is None or clearance > best[0]:
-            best = (clearance, ref)
-    if best is None:  # nothing fits with the edge margin (an aircraft at the airspace's edge, by a no-fly zone)
-        ref = min(hold_candidates(track, scenario, rules, now),
-                  key=lambda r: _infringement(scenario, r.positions(times)))
-        clearance, _ = closest_to_others(ref.positions(others.times), others, rules.minima, track.callsign)
-        best = (clearance, ref)
-    return Fallback(track.callsign, "hold", best[1], now, reason, best[0])
+        scored.append((_badness(scenario, points, clearance, rules.edge_nm), clearance, ref))
+    _, clearance, ref = min(scored, key=lambda s: s[0])
+    return Fallback(track.callsign, "hold", ref, now, reason, clearance)
+
+
+def _badness(scenario: Scenario, points: np.ndarray, clearance: float, edge_nm: float
+             ) -> tuple[int, bool, float, bool, float]:
+    """How bad a hold through ``points`` is when none is good: entering a no-fly zone (a restricted area may be a
+    mountain or a military range), then a predicted loss of separation, then how far it leaves the airspace's box (a
+    line on a chart), then not keeping the edge margin, then the least separation."""
+    hits, outside = _infringement(scenario, points)
+    return hits, clearance < 1.0, outside, not fits_airspace(scenario, points, edge_nm), -clearance
 
 
 def _infringement(scenario: Scenario, points: np.ndarray) -> tuple[int, float]:

@@ -56,10 +56,11 @@ def level_profile(z0: float, level: float, speed: float, t: np.ndarray) -> tuple
     return z, np.where(t < t_level, gamma, 0.0)
 
 
-def ground_speed(speed: float, wind: np.ndarray, direction: np.ndarray) -> float:
-    """Ground speed along the unit ``direction`` of an aircraft at airspeed ``speed`` correcting for ``wind``."""
-    along = float(np.dot(wind, direction))
-    return along + math.sqrt(max(speed**2 - float(np.dot(wind, wind)) + along**2, 0.0))
+def ground_speed(speed: float, wind: np.ndarray, direction: np.ndarray) -> np.ndarray:
+    """Ground speed along the unit ``direction`` (..., 2) of an aircraft at airspeed ``speed`` correcting for
+    ``wind``."""
+    along = np.asarray(direction, float) @ wind
+    return along + np.sqrt(np.maximum(speed**2 - float(np.dot(wind, wind)) + along**2, 0.0))
 
 
 def _air_leg(pose: list[float], speed: float, wind: np.ndarray, leg: Leg, step_s: float) -> list[list[float]]:
@@ -92,19 +93,20 @@ def _orbit(pose: list[float], speed: float, wind: np.ndarray, orbit: Orbit) -> l
     course = math.atan2(track[1], track[0])
     sign = -1.0 if orbit.right else 1.0  # angles anticlockwise from x: a right turn runs clockwise
     cx, cy = x - sign * orbit.radius * math.sin(course), y + sign * orbit.radius * math.cos(course)
-    theta = math.atan2(y - cy, x - cx)
     d_theta = sign * 2.0 * math.pi / ORBIT_STEPS
-    out, end = [], t + orbit.duration_s
-    while t < end:
-        mid = theta + 0.5 * d_theta
-        tangent = sign * np.array([-math.sin(mid), math.cos(mid)])
-        t += orbit.radius * abs(d_theta) / ground_speed(speed, wind, tangent)
-        theta += d_theta
-        tangent = sign * np.array([-math.sin(theta), math.cos(theta)])
-        air = ground_speed(speed, wind, tangent) * tangent - wind
-        out.append([t, cx + orbit.radius * math.cos(theta), cy + orbit.radius * math.sin(theta),
-                     math.atan2(air[1], air[0])])
-    return out
+    arc = orbit.radius * abs(d_theta)
+    steps = np.arange(1, int(math.ceil(orbit.duration_s * (speed + np.linalg.norm(wind)) / arc)) + 2)
+    theta = math.atan2(y - cy, x - cx) + d_theta * steps
+
+    def tangent(angle: np.ndarray) -> np.ndarray:
+        return sign * np.column_stack([-np.sin(angle), np.cos(angle)])
+
+    times = t + np.cumsum(arc / ground_speed(speed, wind, tangent(theta - 0.5 * d_theta)))
+    n = int(np.searchsorted(times, t + orbit.duration_s)) + 1  # the first sample at or past the end
+    theta, times = theta[:n], times[:n]
+    air = ground_speed(speed, wind, tangent(theta))[:, None] * tangent(theta) - wind
+    return np.column_stack([times, cx + orbit.radius * np.cos(theta), cy + orbit.radius * np.sin(theta),
+                            np.arctan2(air[:, 1], air[:, 0])]).tolist()
 
 
 def fly_legs(state: np.ndarray, speed: float, legs: list[Leg | Orbit], level: float, t0: float, step_s: float,
