@@ -257,3 +257,15 @@ def test_a_scenarios_log_keeps_its_story_without_the_optimizers_iterations() -> 
     kept = kept_log(story + chatter + "12:00:02 W mal_planner: partial plan\n")
     assert kept.startswith(story) and "mesh iter" not in kept and kept.endswith("partial plan\n")
     assert len(kept_log(story * (LOG_KEPT_CHARS // len(story) + 10))) == LOG_KEPT_CHARS
+
+
+def test_a_summary_names_a_scenario_it_cannot_read(tmp_path: Path, caplog) -> None:
+    """The closed-loop summary reads each scenario's separation from its file: a file moved away gives a warning
+    naming it (its deviation is then not counted), not a silent gap; a readable one gives its minimum."""
+    from mal_planner.campaign.summary import separation_of
+
+    missing = tmp_path / "gone.yaml"
+    with caplog.at_level("WARNING", logger="mal_planner.campaign"):
+        assert separation_of({"file": str(missing)}) is None
+    assert "gone.yaml" in caplog.text and "separation" in caplog.text
+    assert separation_of({"file": "scenarios/thesis.yaml"}) == pytest.approx(0.25)

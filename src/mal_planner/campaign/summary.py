@@ -4,6 +4,7 @@ distribution, failure classes. Computed from the rows of results.csv only (:mod:
 
 from __future__ import annotations
 
+import logging
 import re
 from collections import Counter
 from collections.abc import Sequence
@@ -14,6 +15,8 @@ import numpy as np
 from mal_planner.campaign.aggregates import STAGES, failure_counts, fit_growth, n_of, stage_medians, success_by_n
 from mal_planner.campaign.figures import write_figures
 from mal_planner.campaign.results import as_float
+
+log = logging.getLogger("mal_planner.campaign")
 
 
 def typical_reasons(rows: Sequence[dict[str, str]], failure_class: str, k: int = 2) -> list[tuple[str, int]]:
@@ -164,12 +167,16 @@ NO_REPLAN_DEVIATION = 0.2
 
 
 def separation_of(row: dict[str, str]) -> float | None:
-    """The scenario's separation minimum (nm), read from its file (None if it cannot be read)."""
-    try:
-        from mal_planner.scenario import load_scenario
+    """The scenario's separation minimum (nm), read from its file (None, with a warning, if it cannot be read: a
+    campaign's results moved away from its scenarios)."""
+    from mal_planner.errors import InvalidInput
+    from mal_planner.scenario import load_scenario
 
+    try:
         return float(load_scenario(row["file"]).separation_nm)
-    except Exception:
+    except (OSError, KeyError, InvalidInput) as exc:
+        log.warning("summary: the separation of %s is unknown (%s); its deviation is not counted",
+                    row.get("file", "?"), " ".join(str(exc).split()))
         return None
 
 

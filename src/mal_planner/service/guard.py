@@ -116,10 +116,13 @@ class Guard:
         cs = track.callsign
         others = Picture(pic.times, {k: v for k, v in pic.paths.items() if k != cs})
         hold = choose_hold(track, others, self.scenario, self.rules, now, why)
+        before = book.fallbacks.get(cs)
         book.give(hold, now)
         pic.paths[cs] = hold.reference.positions(pic.times)
         self.counts["holds"] += 1
-        log.info("t=%.1f s: %s holds (%s; %.2f minima from the others)", now, cs, why, hold.clearance)
+        again = before is not None and before.kind == "hold" and before.reason == why  # the net, scan after scan
+        log.log(logging.DEBUG if again else logging.INFO, "t=%.1f s: %s holds (%s; %.2f minima from the others)",
+                now, cs, why, hold.clearance)
         return hold
 
     def _net(self, tracks: Mapping[str, Track], book: PlanBook, pic: Picture, now: float,
