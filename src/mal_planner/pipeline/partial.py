@@ -37,10 +37,12 @@ def partial_plan(scenario: Scenario, landing: LandingResult, initial: InitialPla
 def better(kept: LandingResult | None, candidate: LandingResult, partial: bool) -> LandingResult:
     """The result to keep of ``kept`` and a new ``candidate``: a success; else, for a partial plan, the one that
     planned more aircraft before it failed (the earlier on a tie); else the latest failure."""
-    if kept is None or candidate.success or not partial:
-        return candidate if kept is None or candidate.success or not kept.success else kept
+    if kept is None or candidate.success:
+        return candidate
     if kept.success:
         return kept
+    if not partial:
+        return candidate
     return candidate if prefix_size(candidate) > prefix_size(kept) else kept
 
 
