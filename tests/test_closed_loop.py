@@ -250,10 +250,12 @@ def test_flown_plans_keep_the_replan_threshold_as_separation_margin() -> None:
     assert 10.0 < filtered_m < 12.0
     assert loop.threshold == pytest.approx(max(10 * Scales.of(scenario).accuracy_nm, 6 * filtered_m / 1852.0))
     assert margins.separation_nm == pytest.approx(2.0 * loop.threshold)
-    # obstacles keep the open-loop margins; the airspace half a path accuracy (the runway lies on its floor: the
-    # threshold is crossed that high, inside the touchdown window); a tenth of the bank limit stays for feedback
+    # the thin pieces of walls keep the open-loop margins, no-fly zones (obstacles with volume) gain the threshold;
+    # the airspace half a path accuracy (the runway lies on its floor: the threshold is crossed that high, inside the
+    # touchdown window); a tenth of the bank limit stays for feedback
     open_loop = PlanOptions().landing.margins.in_nm(Scales.of(scenario))
-    assert margins.obstacle_nm == open_loop.obstacle_nm
+    assert margins.inflation_nm(bulky=False) == open_loop.obstacle_nm == open_loop.inflation_nm(bulky=True)
+    assert margins.inflation_nm(bulky=True) == pytest.approx(open_loop.obstacle_nm + loop.threshold)
     assert margins.airspace_nm == pytest.approx(0.5 * Scales.of(scenario).accuracy_nm)
     assert margins.airspace_nm > open_loop.airspace_nm
     assert m_to_ft(nm_to_m(margins.airspace_nm)) < 50.0

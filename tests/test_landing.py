@@ -182,12 +182,20 @@ def test_optimizer_rebuilds_when_an_aircraft_has_passed_the_gate(thesis) -> None
     assert second.gate_times()["A1"] is None and second.gate_times()["A2"] is not None
 
 
-def test_landing_optimizer_without_gate() -> None:
+def test_landing_optimizer_without_gate_and_the_zone_margin_of_flown_plans() -> None:
+    """No wall: no gate events. A flown plan keeps the replan threshold (ten path accuracies) from the no-fly zones,
+    an open-loop plan only its two-accuracy margin (less half of it between collocation points)."""
     sc = load_scenario("scenarios/no_fly_zones.yaml")
     res = plan(sc, PlanOptions(seed=0, landing=COARSE))
     assert res.optimized and res.verification.verified, res.verification.reasons
     assert all(g is None for g in res.landing.gate_times.values())
     assert len(res.landing.layout.events) == len(sc.aircraft)
+    flown = plan(sc, PlanOptions(seed=0, landing=COARSE, tracking_margins=True))
+    assert flown.verification.verified, flown.verification.reasons
+    accuracy = Scales.of(sc).accuracy_nm
+    zone = sc.obstacles[0].inflated(10.0 * accuracy)  # the ellipsoid the aircraft fly around
+    assert any(zone.contains(tr.states[:, :3]).any() for tr in res.trajectories())
+    assert not any(zone.contains(tr.states[:, :3]).any() for tr in flown.trajectories())
 
 
 def test_guesses_start_at_the_true_state(thesis, thesis_initial) -> None:

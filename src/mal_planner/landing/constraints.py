@@ -103,7 +103,8 @@ class PhaseConstraints:
            intruders: tuple[Intruder, ...]) -> PhaseConstraints:
         """The constraints of ``aircraft`` within the state bounds ``x_lb``, ``x_ub`` keeping ``pairs`` (indices
         into ``aircraft``) and the ``intruders`` apart."""
-        obstacles = [ob.inflated(margins.obstacle_nm) for ob in scenario.obstacles]
+        obstacles = [ob.inflated(margins.inflation_nm(min(ob.semi_axes) >= scales.length_nm))
+                     for ob in scenario.obstacles]
         # An obstacle matters to an aircraft in this phase only if it overlaps the box the state bounds allow
         # (e.g. the wall, which lies on the approach side of its gate, is irrelevant after the gate).
         relevant = [

@@ -42,13 +42,18 @@ class SafetyMargins:
     """How far a path may pass the airspace less ``airspace`` (and the gate's plane, where a phase keeps it on one
     side) between its collocation points before the mesh refinement splits the segment; None: unchecked (open loop:
     the margin absorbs it, and the verification refines where the airspace itself is crossed). Plans that are flown
-    keep the rest of the margin for the aircraft's stray (:func:`mal_planner.closedloop.loop.tracking_margins`)."""
+    keep the rest of the margin for the aircraft's stray (:func:`mal_planner.options.plan.tracking_margins`)."""
+    zone: float = 0.0
+    """Added to ``obstacle`` for obstacles with volume (no-fly zones; not the thin pieces of a wall, whose holes it
+    would close). Open loop: none. Plans that are flown: the deviation an aircraft may stray before the service
+    replans (:func:`mal_planner.options.plan.tracking_margins`)."""
 
     def in_nm(self, scales: Scales) -> Margins:
         unit = scales.accuracy_nm
         return Margins(self.separation * unit, self.obstacle * unit, self.clearance, self.gate * unit,
                        self.airspace * unit, self.bank_rad, self.load_factor,
-                       None if self.airspace_bulge is None else self.airspace_bulge * unit)
+                       None if self.airspace_bulge is None else self.airspace_bulge * unit,
+                       (self.obstacle + self.zone) * unit)
 
 
 @dataclass(frozen=True)
@@ -63,6 +68,13 @@ class Margins:
     bank_rad: float
     load_factor: float
     airspace_bulge_nm: float | None = None
+    zone_nm: float | None = None
+    """The inflation of obstacles with volume (None: ``obstacle_nm``)."""
+
+    def inflation_nm(self, bulky: bool) -> float:
+        """How much an obstacle's semi-axes are inflated: a thin wall piece by ``obstacle_nm``, one with volume by
+        ``zone_nm``."""
+        return self.zone_nm if bulky and self.zone_nm is not None else self.obstacle_nm
 
     @property
     def hole_nm(self) -> float:
