@@ -14,6 +14,7 @@ stay in the runway frame (nm) in both kinds of file.
 from __future__ import annotations
 
 import math
+from dataclasses import replace
 from pathlib import Path
 from typing import Any
 
@@ -23,7 +24,8 @@ from pydantic import ValidationError
 
 from mal_planner.dynamics import make_dynamics
 from mal_planner.geodesy import GeoFrame
-from mal_planner.obstacles import Superquadric
+from mal_planner.obstacles import Gate, Superquadric
+from mal_planner.performance import UnknownAircraftType, known_type
 from mal_planner.scenario.model import Aircraft, Scenario, ScenarioError
 from mal_planner.scenario.obstacle_schema import WallConfig
 from mal_planner.scenario.quantities import field_unit
@@ -102,10 +104,8 @@ def localize(config: ScenarioConfig) -> tuple[ScenarioConfig, GeoFrame | None]:
     return config.model_copy(update={"runway": runway, "aircraft": aircraft}), frame
 
 
-def build_scenario(config: ScenarioConfig, source: str = "<scenario>") -> Scenario:
-    """Convert a validated config to planner units and check the geometry (raises ScenarioError)."""
-    given = config
-    config, frame = localize(config)
+def _obstacles_and_gates(config: ScenarioConfig) -> tuple[list[Superquadric], list[Gate]]:
+    """The obstacles (a wall expanded into its pieces) and the gates (a wall's hole among them)."""
     obstacles: list[Superquadric] = []
     gates = [g.to_gate() for g in config.gates]
     for spec in config.obstacles:
@@ -115,6 +115,14 @@ def build_scenario(config: ScenarioConfig, source: str = "<scenario>") -> Scenar
             gates.append(gate.to_gate())
         else:
             obstacles.append(Superquadric(spec.name, spec.center, spec.semi_axes, spec.p))
+    return obstacles, gates
+
+
+def build_scenario(config: ScenarioConfig, source: str = "<scenario>") -> Scenario:
+    """Convert a validated config to planner units and check the geometry (raises ScenarioError)."""
+    given = config
+    config, frame = localize(config)
+    obstacles, gates = _obstacles_and_gates(config)
     airspace = np.array([config.airspace.x, config.airspace.y, config.airspace.z], dtype=float)
     wind = (0.0, 0.0) if config.wind is None else config.wind.velocity(frame)
     aircraft = []
@@ -127,7 +135,8 @@ def build_scenario(config: ScenarioConfig, source: str = "<scenario>") -> Scenar
         limits = ac.limits.to_limits() if ac.limits else (
             config.limits.to_limits() if "limits" in config.model_fields_set else dyn.default_limits)
         aircraft.append(Aircraft(ac.callsign, state0, dyn, limits, ac.wake_category, ac.landing_time,
-                                 ac.target_time, ac.latest_time, ac.cost_early, ac.cost_late))
+                                 ac.target_time, ac.latest_time, ac.cost_early, ac.cost_late,
+                                 _known_type(ac.aircraft_type, source, f"aircraft[{i}].aircraft_type")))
         where, what = f"aircraft[{i}].position", str(list(ac.position))
         if isinstance(geo := given.aircraft[i], GeoAircraftConfig):
             where = f"aircraft[{i}].lat/lon/alt_ft"
@@ -161,7 +170,20 @@ def build_scenario(config: ScenarioConfig, source: str = "<scenario>") -> Scenar
         source=source,
         geo_frame=frame,
         wind=wind,
+        procedures=None if config.procedures is None else replace(
+            config.procedures.to_procedures(),
+            default_type=_known_type(config.procedures.aircraft_type, source, "procedures.aircraft_type")),
     )
+
+
+def _known_type(type_code: str | None, source: str, where: str) -> str | None:
+    """``type_code`` in capitals, checked against OpenAP (its first use imports OpenAP: seconds)."""
+    if type_code is None:
+        return None
+    try:
+        return known_type(type_code)
+    except UnknownAircraftType as exc:
+        raise ScenarioError(source, where, str(exc).split(" (known:")[0]) from None
 
 
 def parse_scenario(data: Any, source: str = "<scenario>") -> Scenario:

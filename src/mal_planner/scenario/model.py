@@ -15,7 +15,9 @@ from mal_planner.dynamics import ControlLimits, DynamicsModel
 from mal_planner.errors import InvalidInput
 from mal_planner.geodesy import GeoFrame
 from mal_planner.obstacles import Gate, Superquadric
+from mal_planner.scenario.procedures import Procedures
 from mal_planner.scenario.sequencing import SequencingOptions
+from mal_planner.units import ft_to_nm
 
 if TYPE_CHECKING:
     from mal_planner.scenario.schema import ScenarioConfig
@@ -46,6 +48,8 @@ class Aircraft:
     latest_time: float | None = None
     cost_early: float = 0.0
     cost_late: float = 1.0
+    type_code: str | None = None
+    """ICAO type designator (None: the scenario's procedures' default type, if any)."""
 
     @property
     def speed(self) -> float:
@@ -95,6 +99,17 @@ class Scenario:
     """How the order and the free landing times are decided (``sequencing:``)."""
     wind: tuple[float, float] = (0.0, 0.0)
     """The constant wind (w_x, w_y) in nm/s in the local frame (``wind:``); every aircraft's model carries it."""
+    procedures: Procedures | None = None
+    """The arrival procedures every plan keeps (``procedures:``); None: none (the thesis's airspace)."""
+
+    @property
+    def elevation_nm(self) -> float:
+        """The threshold's elevation (nm; 0 for a local scenario): the local z plus this is the altitude."""
+        return 0.0 if self.geo_frame is None else ft_to_nm(self.geo_frame.elevation_ft)
+
+    def type_of(self, aircraft: Aircraft) -> str | None:
+        """The ICAO type ``aircraft`` flies as: its own, else the procedures' default (None: no type)."""
+        return aircraft.type_code or (self.procedures.default_type if self.procedures else None)
 
     @property
     def separation_radius_nm(self) -> float:

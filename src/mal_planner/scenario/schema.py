@@ -15,6 +15,7 @@ from pydantic import Discriminator, Field, Tag, field_validator, model_validator
 from mal_planner.dynamics import DYNAMICS_MODELS, ControlLimits
 from mal_planner.geodesy import GeoFrame
 from mal_planner.scenario.obstacle_schema import GateConfig, ObstacleConfig
+from mal_planner.scenario.procedures import ProceduresConfig
 from mal_planner.scenario.quantities import Interval, Strict, Vec3, quantity
 from mal_planner.scenario.sequencing import SequencingOptions, Strategy
 from mal_planner.units import kt_to_nm_per_s
@@ -56,6 +57,9 @@ class _AircraftCommon(Strict):
     model: str = "point_mass"
     wake_category: Literal["L", "M", "H", "J", "A", "B", "C", "D", "E", "F"] | None = None
     """ICAO (J, H, M, L) or RECAT-EU (A-F) wake-turbulence category; required by ``separation.wake``."""
+    aircraft_type: str | None = Field(None, pattern=r"^[A-Za-z0-9]{2,4}$")
+    """ICAO type designator (e.g. A320, B738); its performance comes from OpenAP (:mod:`mal_planner.performance`).
+    None: the ``procedures``' default type."""
     landing_time: float | None = quantity("s", None, gt=0.0)
     """Fixed landing time in s (as in the thesis); omitted: taken from the sequencer."""
     target_time: float | None = quantity("s", None, gt=0.0)
@@ -260,6 +264,8 @@ class ScenarioConfig(Strict):
     sequencing: SequencingConfig = SequencingConfig()
     limits: LimitsConfig = LimitsConfig()
     wind: WindConfig | None = None
+    procedures: ProceduresConfig | None = None
+    """The arrival procedures plans keep (:mod:`mal_planner.scenario.procedures`); None: none (the thesis)."""
 
     @model_validator(mode="after")
     def _wind_direction_needs_north(self) -> ScenarioConfig:

@@ -9,6 +9,7 @@ import numpy as np
 
 from mal_planner.scenario import Scenario
 from mal_planner.trajectory import Trajectory
+from mal_planner.verification.procedures import procedure_breaks
 from mal_planner.verification.report import AircraftCheck, Tolerances
 from mal_planner.verification.space import chord_error_bound, gate_crossings, path_in_space
 
@@ -30,6 +31,8 @@ def check_aircraft(scenario: Scenario, traj: Trajectory, t: np.ndarray, x: np.nd
     bank, n_v, bad_times = _controls(traj, aircraft, fail)
     limit_times += bad_times
     runway = _runway(scenario, aircraft, cs, x, tol, fail)
+    for text in procedure_breaks(scenario, aircraft, t, x):
+        fail((cs,), text)
     if landing_times is not None and cs in landing_times and \
             abs(t[-1] - landing_times[cs]) > tol.landing_time_s:
         fail((cs,), f"{cs}: lands at {t[-1]:.3f} s, not the fixed {landing_times[cs]:.3f} s")

@@ -1,0 +1,97 @@
+"""The arrival procedures and the type's envelope, checked on a flown path (a scenario with ``procedures:``).
+
+Every rule of :mod:`mal_planner.scenario.procedures` and the type's OpenAP envelope (:mod:`mal_planner.performance`),
+on the flown samples, with no tolerance: speeds as calibrated airspeeds (the model's airspeed is a true airspeed),
+vertical speeds as the airspeed times the sine of the flight-path angle, altitudes as the threshold's elevation
+plus the height above it.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from mal_planner.performance import Performance, cas_of_tas, performance_of
+from mal_planner.scenario import Aircraft, Scenario
+from mal_planner.scenario.procedures import Procedures
+from mal_planner.units import nm_per_s_to_kt, nm_to_ft
+
+FPM_PER_NM_S = nm_to_ft(60.0)
+"""ft/min in one nm/s."""
+
+
+def procedure_breaks(scenario: Scenario, aircraft: Aircraft, t: np.ndarray, x: np.ndarray) -> list[str]:
+    """What ``aircraft``'s flown path ``(t, x)`` breaks of the scenario's procedures and its type's envelope (one
+    line each, at the first sample that breaks it); [] when the scenario has no procedures."""
+    rules = scenario.procedures
+    if rules is None:
+        return []
+    perf = performance_of(scenario.type_of(aircraft))
+    height = x[:, 2] - float(scenario.runway_state[2])
+    altitude = x[:, 2] + scenario.elevation_nm
+    distance = np.hypot(x[:, 0] - scenario.runway_state[0], x[:, 1] - scenario.runway_state[1])
+    cas = cas_of_tas(np.full(len(t), aircraft.speed), altitude)
+    vertical = aircraft.speed * np.sin(x[:, 3])
+    course = float(scenario.runway_state[4])
+    past = (x[:, 0] - scenario.runway_state[0]) * np.cos(course) + \
+        (x[:, 1] - scenario.runway_state[1]) * np.sin(course) > 0.0
+    found = _speeds(rules, perf, cas, altitude, distance) + _vertical(rules, perf, vertical, x[:, 2]) + \
+        _profile(rules, height, distance, past)
+    return [f"{aircraft.callsign} ({perf.type_code}): {what} at t={t[k]:.1f} s" for what, k in found]
+
+
+def _first(bad: np.ndarray) -> int | None:
+    hits = np.flatnonzero(bad)
+    return int(hits[0]) if hits.size else None
+
+
+def _speeds(rules: Procedures, perf: Performance, cas: np.ndarray, altitude: np.ndarray,
+            distance: np.ndarray) -> list[tuple[str, int]]:
+    """Below the speed-limit altitude at most the limit, or the speed it arrived with while it slows down; inside
+    the final distance at most the final speed; within the type's VMO/MMO and above its slowest final approach."""
+    found = []
+    slowing = np.minimum.accumulate(cas)
+    low = altitude < rules.speed_limit_below_nm
+    if (k := _first(low & (cas > np.maximum(rules.speed_limit, slowing)))) is not None:
+        found.append((f"{nm_per_s_to_kt(cas[k]):.0f} kt CAS at {nm_to_ft(altitude[k]):.0f} ft (limit "
+                      f"{nm_per_s_to_kt(rules.speed_limit):.0f} kt below {nm_to_ft(rules.speed_limit_below_nm):.0f} "
+                      "ft)", k))
+    if (k := _first((distance < rules.final_distance_nm) & (cas > rules.final_speed))) is not None:
+        found.append((f"{nm_per_s_to_kt(cas[k]):.0f} kt CAS {distance[k]:.2f} nm from the threshold (limit "
+                      f"{nm_per_s_to_kt(rules.final_speed):.0f} kt inside {rules.final_distance_nm:g} nm)", k))
+    if (k := _first(cas > perf.max_cas(altitude))) is not None:
+        found.append((f"{nm_per_s_to_kt(cas[k]):.0f} kt CAS above the type's VMO/MMO", k))
+    if (k := _first(cas < perf.final_approach_cas.low)) is not None:
+        found.append((f"{nm_per_s_to_kt(cas[k]):.0f} kt CAS below the type's slowest final approach "
+                      f"({nm_per_s_to_kt(perf.final_approach_cas.low):.0f} kt)", k))
+    return found
+
+
+def _vertical(rules: Procedures, perf: Performance, vertical: np.ndarray, z: np.ndarray) -> list[tuple[str, int]]:
+    """Vertical speed within the rules and the type's observed range; no climb above the lowest level flown by more
+    than the rules allow."""
+    found = []
+    down = max(-rules.max_descent_rate, perf.descent_rate.low)
+    up = min(rules.max_climb_rate, perf.climb_rate.high)
+    if (k := _first((vertical < down) | (vertical > up))) is not None:
+        found.append((f"vertical speed {vertical[k] * FPM_PER_NM_S:+.0f} ft/min (limits {down * FPM_PER_NM_S:+.0f} "
+                      f"/ {up * FPM_PER_NM_S:+.0f})", k))
+    climbed = z - np.minimum.accumulate(z)
+    if (k := _first(climbed > rules.max_climb_nm)) is not None:
+        found.append((f"climbs {nm_to_ft(float(np.max(climbed))):.0f} ft (at most {nm_to_ft(rules.max_climb_nm):.0f})",
+                      k))
+    return found
+
+
+def _profile(rules: Procedures, height: np.ndarray, distance: np.ndarray, past: np.ndarray) -> list[tuple[str, int]]:
+    """Beyond the final distance at least the minimum height (or the first height, if lower); below the turn-away
+    height never farther from the threshold than the sample before, until it is past the threshold (``past``:
+    landed)."""
+    found = []
+    floor = min(rules.min_height_nm, float(height[0]))
+    if (k := _first((distance > rules.final_distance_nm) & (height < floor))) is not None:
+        found.append((f"{nm_to_ft(height[k]):.0f} ft above the threshold {distance[k]:.1f} nm out (at least "
+                      f"{nm_to_ft(floor):.0f} ft beyond {rules.final_distance_nm:g} nm)", k))
+    away = (np.diff(distance) > 0.0) & ~past[1:]
+    if (k := _first((height[1:] < rules.turn_away_below_nm) & away)) is not None:
+        found.append((f"flies away from the threshold {nm_to_ft(height[k + 1]):.0f} ft above it", k + 1))
+    return found
