@@ -163,19 +163,34 @@ def sample_flights():
     return adsb_tracks.tracks_from_frame(df[df["callsign"].isin(["AFR4145", "AFR71ZP", "AFR429", "AFL2461"])])
 
 
+def test_stale_positions_are_dropped(sample_flights):
+    """The receiver repeats a position until it decodes a new one: AFR71ZP's sample holds its last position 0.83 nm
+    before 08R for minutes after it landed, which made its landing (time over the threshold, fitted on its final)
+    204 s late. Every kept sample has a new position, and the landing is within seconds of its last live sample
+    (flying on at 129 kt, 0.83 nm take 23 s)."""
+    from traffic.data.samples import quickstart
+
+    raw = quickstart.data.query("callsign == 'AFR71ZP'").dropna(subset=["latitude", "longitude"])
+    afr = next(tr for tr in sample_flights if tr.callsign == "AFR71ZP")
+    assert len(afr.t) < len(raw) and np.all((np.diff(afr.lat) != 0.0) | (np.diff(afr.lon) != 0.0))
+    landing = adsb_tracks.detect_landing(afr, runways("LFPG").values())
+    assert 0.0 < landing.time_s - afr.t[-1] < 40.0
+    assert raw["timestamp"].max().timestamp() - landing.time_s > 200.0  # the stale repeats went on past it
+
+
 def test_converter_on_sample_flights(sample_flights):
     by = {tr.callsign: tr for tr in sample_flights}
     table = runways("LFPG").values()
     lands = {c: adsb_tracks.detect_landing(tr, table) for c, tr in by.items()}
     assert lands["AFL2461"] is None  # a departure
     assert {c: (lnd.runway.name, adsb_tracks.utc_text(lnd.time_s)[11:16]) for c, lnd in lands.items() if lnd} == {
-        "AFR4145": ("08R", "14:49"), "AFR71ZP": ("08R", "14:49"), "AFR429": ("09R", "14:54")}
+        "AFR4145": ("08R", "14:48"), "AFR71ZP": ("08R", "14:46"), "AFR429": ("09R", "14:54")}
     sc = load_scenario(SCENARIO)
     # the bundled file's offset (its header: calibrated on all the recording's landings, not on these three)
     offset = float(re.search(r"barometric altitude ([+-]\d+\.\d) ft", Path(SCENARIO).read_text("utf-8")).group(1))
     sel = adsb.select_arrivals(sample_flights, runway("LFPG", "08R"), MOMENT, adsb.Area.square(40.0, 3.0),
                                arrivals="airport", altitude_offset_ft=offset)
-    assert [a.callsign for a in sel.kept] == ["AFR4145", "AFR71ZP", "AFR429"]
+    assert [a.callsign for a in sel.kept] == ["AFR71ZP", "AFR4145", "AFR429"]
     bundled = {a.callsign: a.state0 for a in sc.aircraft}
     written = {a["callsign"]: a for a in yaml.safe_load(Path(SCENARIO).read_text("utf-8"))["aircraft"]}
     for a in sel.kept:  # the bundled scenario's states, to its rounding (1e-7 deg, 0.1 ft)

@@ -9,8 +9,11 @@ equal to ENU, x east and y north.
 Lengths are straight lines in that tangent plane, so the local z of a point is its height above the plane
 through the threshold, not its altitude above the threshold: the two differ by the Earth's curvature,
 about d^2 / (2 R), 27 m (88 ft) at 10 nm and 240 m at 30 nm. Altitudes (``alt_ft``, ``elevation_ft``) are
-heights above the WGS84 ellipsoid; given as heights above mean sea level, both are off by the same geoid
-undulation, which cancels up to its variation across the area (metres over tens of nm).
+above mean sea level (MSL): runway elevations are published so and the ADS-B converter calibrates altitudes to
+them. The frame's geometry takes them as heights above the WGS84 ellipsoid (no geoid model installs offline):
+the frame then lies higher or lower by the geoid undulation (about 45 m at CDG), the same for every point, so local
+positions and heights above the threshold are unaffected up to the undulation's variation across the area (metres
+over tens of nm).
 
 Directions (heading and flight-path angle) are those of the velocity vector: the true track at an aircraft
 is measured from the north of its own position, which differs from the north of the threshold by the
@@ -39,7 +42,8 @@ class GeoFrame:
     lat_deg: float
     lon_deg: float
     elevation_ft: float
-    """Height of the threshold (and of the frame's origin) above the ellipsoid, in ft."""
+    """Altitude of the threshold (and of the frame's origin) above mean sea level, in ft (see the module's
+    docstring for the datum)."""
     course_deg: float
     """True course of the landing direction, clockwise from true north, in degrees."""
 
@@ -97,7 +101,7 @@ class GeoFrame:
 
     def describe(self) -> dict:
         """The frame's definition, for outputs (plan.json)."""
-        return {"datum": "WGS84", "origin": {"lat_deg": self.lat_deg, "lon_deg": self.lon_deg,
+        return {"datum": "WGS84", "altitude_datum": "MSL", "origin": {"lat_deg": self.lat_deg, "lon_deg": self.lon_deg,
                                              "elevation_ft": self.elevation_ft},
                 "course_deg": self.course_deg,
                 "axes": "origin at the runway threshold; z up (ellipsoid normal); the east-north-up tangent plane "

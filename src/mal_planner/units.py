@@ -1,8 +1,10 @@
-"""Unit and frame conversions between the planner (nm, s, rad) and ROS topics (SI, ENU).
+"""Unit and frame conversions between the planner (nm, s, rad) and ROS topics (SI).
 
-The planner frame is the runway frame of the thesis: x to the east, y to the north, z up, origin at
-the runway threshold. It is already an ENU frame, so the ROS boundary only scales lengths and speeds.
-Headings are mathematical angles from +x, counter-clockwise, the same convention as ENU yaw (REP 103).
+The planner frame is the runway frame of the thesis: right-handed, z up, origin at the runway threshold; in a
+local scenario x is east and y north (ENU), in a geodetic one it is the threshold's east-north-up plane turned so
+that the landing direction is -y (:mod:`mal_planner.geodesy`). ROS topics use the same frame (``runway``), so the
+boundary only scales lengths and speeds. Headings are mathematical angles from +x, counter-clockwise, the same
+convention as yaw in REP 103.
 This is the only place where these factors are written.
 """
 

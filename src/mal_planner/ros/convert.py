@@ -188,8 +188,8 @@ def path_msg(
 
 
 def frame_origin_fields(frame: GeoFrame | None) -> dict[str, Any]:
-    """``LandingPlan``'s geodetic fields: where the runway frame lies on the Earth (deg, m above the WGS84
-    ellipsoid, true course in deg); ``geodetic`` false and NaNs for a local frame."""
+    """``LandingPlan``'s geodetic fields: where the runway frame lies on the Earth (deg, m above mean sea
+    level, true course in deg); ``geodetic`` false and NaNs for a local frame."""
     if frame is None:
         return {"geodetic": False, "origin_latitude": math.nan, "origin_longitude": math.nan,
                 "origin_altitude": math.nan, "course": math.nan}
@@ -198,7 +198,7 @@ def frame_origin_fields(frame: GeoFrame | None) -> dict[str, Any]:
 
 
 def geodetic_path_fields(frame: GeoFrame | None, states: np.ndarray) -> dict[str, list[float]]:
-    """``AircraftPlan``'s ``latitude``/``longitude`` [deg] and ``altitude`` [m above the ellipsoid] of planner
+    """``AircraftPlan``'s ``latitude``/``longitude`` [deg] and ``altitude`` [m above mean sea level] of planner
     states (n, 5) in the runway frame; empty lists for a local frame."""
     if frame is None:
         return {"latitude": [], "longitude": [], "altitude": []}
