@@ -88,6 +88,12 @@ def tas_of_cas(cas, altitude_nm):
     return aero.cas2tas(cas_m_s, np.asarray(altitude_nm, dtype=float) * METRES_PER_NM) / METRES_PER_NM
 
 
+def tas_of_mach(mach, altitude_nm):
+    """True airspeed (nm/s) of the Mach number ``mach`` at pressure altitude ``altitude_nm`` (ISA)."""
+    return _aero().mach2tas(np.asarray(mach, dtype=float), np.asarray(altitude_nm, dtype=float) * METRES_PER_NM
+                            ) / METRES_PER_NM
+
+
 @cache
 def performance_of(type_code: str | None = None) -> Performance:
     """The performance of ICAO type ``type_code`` (None: :data:`DEFAULT_TYPE`); synonyms OpenAP knows (e.g. A20N

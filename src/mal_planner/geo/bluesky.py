@@ -9,7 +9,8 @@ zone. A thesis-style sphere of radius d has no cylinder of its own; the export u
 holding it (radius d, half-height d), so BlueSky counts every loss the plan could have, and some it has not.
 
 BlueSky's speeds are calibrated airspeeds (CAS); the plan's constant true airspeed becomes the CAS of the
-International Standard Atmosphere at each waypoint's altitude (BlueSky's own atmosphere, troposphere only).
+International Standard Atmosphere at each waypoint's altitude (OpenAP's atmosphere, :mod:`mal_planner.performance`;
+BlueSky's is the same model, its speeds agree to 1e-4).
 """
 
 from __future__ import annotations
@@ -23,15 +24,9 @@ from pathlib import Path
 import numpy as np
 
 from mal_planner.geodesy import GeoFrame
+from mal_planner.performance import cas_of_tas, tas_of_cas, tas_of_mach
 from mal_planner.scales import Scales
-from mal_planner.units import METRES_PER_NM, ft_to_m, m_to_ft, nm_per_s_to_kt
-
-# The International Standard Atmosphere below the tropopause (ICAO Doc 7488), as BlueSky's tools.aero uses it.
-ISA_P0, ISA_RHO0, ISA_T0 = 101325.0, 1.225, 288.15
-"""Sea-level pressure (Pa), density (kg/m^3), temperature (K)."""
-ISA_LAPSE, ISA_R, ISA_G0 = -0.0065, 287.05287, 9.80665
-"""Temperature gradient (K/m), gas constant of air (J/(kg K)), gravity (m/s^2)."""
-TROPOPAUSE_M = 11000.0
+from mal_planner.units import METRES_PER_NM, ft_to_nm, kt_to_nm_per_s, m_to_ft, nm_per_s_to_kt
 
 WAYPOINTS_PER_RADIAN = 4.0
 """Waypoints per turn time (the time to turn one radian at the bank limit): BlueSky flies straight legs between
@@ -40,37 +35,18 @@ waypoint every 1.9 s, 0.075 nm)."""
 
 
 def tas_to_cas_kt(tas_kt: float, altitude_ft: float) -> float:
-    """True to calibrated airspeed (knots) in the ISA troposphere (compressible flow, as BlueSky's tas2cas)."""
-    _, pressure, density = _isa(ft_to_m(altitude_ft))
-    tas = tas_kt * METRES_PER_NM / 3600.0
-    impact = pressure * ((1.0 + density * tas * tas / (7.0 * pressure)) ** 3.5 - 1.0)
-    cas = math.sqrt(7.0 * ISA_P0 / ISA_RHO0 * ((impact / ISA_P0 + 1.0) ** (2.0 / 7.0) - 1.0))
-    return cas * 3600.0 / METRES_PER_NM
-
-
-def _isa(altitude_m: float) -> tuple[float, float, float]:
-    """ISA troposphere at a geometric altitude (m): temperature (K), pressure (Pa), density (kg/m^3)."""
-    if altitude_m >= TROPOPAUSE_M:
-        raise ValueError(f"altitude {m_to_ft(altitude_m):.0f} ft is above the tropopause (the ISA model here ends "
-                         "there)")
-    temperature = ISA_T0 + ISA_LAPSE * altitude_m
-    pressure = ISA_P0 * (temperature / ISA_T0) ** (-ISA_G0 / (ISA_LAPSE * ISA_R))
-    return temperature, pressure, pressure / (ISA_R * temperature)
+    """True to calibrated airspeed (knots) at a pressure altitude (ft), in OpenAP's ISA, which is BlueSky's."""
+    return float(nm_per_s_to_kt(cas_of_tas(kt_to_nm_per_s(tas_kt), ft_to_nm(altitude_ft))))
 
 
 def cas_to_tas_kt(cas_kt: float, altitude_ft: float) -> float:
-    """Calibrated to true airspeed (knots) in the ISA troposphere: the inverse of :func:`tas_to_cas_kt`."""
-    _, pressure, density = _isa(ft_to_m(altitude_ft))
-    cas = cas_kt * METRES_PER_NM / 3600.0
-    impact = ISA_P0 * ((1.0 + ISA_RHO0 * cas * cas / (7.0 * ISA_P0)) ** 3.5 - 1.0)
-    tas = math.sqrt(7.0 * pressure / density * ((impact / pressure + 1.0) ** (2.0 / 7.0) - 1.0))
-    return tas * 3600.0 / METRES_PER_NM
+    """Calibrated to true airspeed (knots): the inverse of :func:`tas_to_cas_kt`."""
+    return float(nm_per_s_to_kt(tas_of_cas(kt_to_nm_per_s(cas_kt), ft_to_nm(altitude_ft))))
 
 
 def mach_to_tas_kt(mach: float, altitude_ft: float) -> float:
-    """Mach number to true airspeed (knots) in the ISA troposphere (speed of sound sqrt(1.4 R T))."""
-    temperature, _, _ = _isa(ft_to_m(altitude_ft))
-    return mach * math.sqrt(1.4 * ISA_R * temperature) * 3600.0 / METRES_PER_NM
+    """Mach number to true airspeed (knots) at a pressure altitude (ft)."""
+    return float(nm_per_s_to_kt(tas_of_mach(mach, ft_to_nm(altitude_ft))))
 
 
 def wind_command(frame: GeoFrame, wind: tuple[float, float]) -> str | None:

@@ -8,7 +8,7 @@ commas or spaces), at the time of the first ``CRE`` (``--at`` another time: thos
 * Positions: decimal degrees (BlueSky also takes navaids and degree-minute-second text: refused, one line
   naming the line); altitude in ft or as a flight level ``FL70``.
 * Speed: CAS in kt, or a Mach number (``0.78``, ``M.78``, ``M0.78``); made a true airspeed in the ISA
-  troposphere (BlueSky's atmosphere, as the export's :func:`~mal_planner.geo.bluesky.tas_to_cas_kt`).
+  (OpenAP's atmosphere, as the export's :func:`~mal_planner.geo.bluesky.tas_to_cas_kt`).
 * Heading: BlueSky's true heading; in still air (as BlueSky creates aircraft) also the track, which the
   scenario's ``track_deg`` is; level flight (BlueSky creates aircraft level).
 * The aircraft type is kept as a comment only: a wake category is not guessed from it (set ``wake_category``
@@ -69,12 +69,9 @@ def _tas_kt(text: str, alt_ft: float, where: str) -> float:
     value = _number(text[1:] if mach else text, "speed", where)
     if not value > 0.0:
         raise ScnError(f"{where}: speed {text!r} must be > 0")
-    try:
-        if mach or value < 1.0:  # BlueSky reads a speed below 1 as a Mach number
-            return mach_to_tas_kt(value, alt_ft)
-        return cas_to_tas_kt(value, alt_ft)
-    except ValueError as exc:
-        raise ScnError(f"{where}: {exc}") from None
+    if mach or value < 1.0:  # BlueSky reads a speed below 1 as a Mach number
+        return mach_to_tas_kt(value, alt_ft)
+    return cas_to_tas_kt(value, alt_ft)
 
 
 def parse_create(time_s: float, arguments: str, where: str) -> Created:
