@@ -11,6 +11,7 @@ import numpy as np
 
 from mal_planner.dynamics import bank_limit_residuals
 from mal_planner.landing.margins import Margins
+from mal_planner.landing.profile import floor_height
 from mal_planner.obstacles import Superquadric
 from mal_planner.scales import Scales
 from mal_planner.scenario import Aircraft, Scenario
@@ -96,6 +97,7 @@ class PhaseConstraints:
     zone: ProtectedZone
     intruders: tuple[Intruder, ...]
     margins: Margins
+    scenario: Scenario
 
     @classmethod
     def of(cls, scenario: Scenario, aircraft: list[Aircraft], x_lb: list[float], x_ub: list[float],
@@ -115,7 +117,7 @@ class PhaseConstraints:
         # (a thin wall is crossed only at its gate event, where its phase ends: the state bounds keep each side of
         # its plane).
         bulky = [[ob for ob in relevant[j] if min(ob.semi_axes) >= scales.length_nm] for j in range(len(aircraft))]
-        return cls(aircraft, relevant, bulky, pairs, ProtectedZone.of(scenario, margins), intruders, margins)
+        return cls(aircraft, relevant, bulky, pairs, ProtectedZone.of(scenario, margins), intruders, margins, scenario)
 
     @property
     def n_aircraft(self) -> int:
@@ -156,7 +158,22 @@ class PhaseConstraints:
             # ln(F)/p = ln of the p-norm: the thesis's constraint divided by p, the same feasible set with
             # p times smaller derivatives (p = 50 for the wall).
             out += [ob.log_pnorm(px, py, pz) / ob.p for ob in self.relevant[j]]
-        return ca.vertcat(*out, *self.separations(x, t))
+        return ca.vertcat(*out, *self.floors(x), *self.separations(x, t))
+
+    def floors(self, x) -> list:
+        """Each aircraft's height above the procedures' floor (:mod:`mal_planner.landing.profile`); none without
+        procedures."""
+        runway_z = float(self.scenario.runway_state[2])
+        out = []
+        for j, ac in enumerate(self.aircraft):
+            floor = floor_height(self.scenario, ac, x[5 * j], x[5 * j + 1])
+            if floor is not None:
+                out.append(x[5 * j + 2] - runway_z - floor)
+        return out
+
+    @property
+    def n_floors(self) -> int:
+        return 0 if self.scenario.procedures is None else self.n_aircraft
 
     def midpoint(self, x, t, p):
         return ca.vertcat(*[ob.log_pnorm(x[5 * j], x[5 * j + 1], x[5 * j + 2]) / ob.p
@@ -173,6 +190,8 @@ class PhaseConstraints:
         for j in range(self.n_aircraft):
             p_lb += [self.margins.clearance] * len(self.relevant[j])
             p_ub += [math.inf] * len(self.relevant[j])
+        p_lb += [self.margins.airspace_nm] * self.n_floors
+        p_ub += [math.inf] * self.n_floors
         n_sep = self.n_separations
         p_lb += [self.zone.lower] * n_sep
         p_ub += [math.inf] * n_sep
@@ -187,7 +206,7 @@ class PhaseConstraints:
         margins = self.margins
         return [margins.clearance - math.log1p(-0.5 * margins.obstacle_nm / max(ob.semi_axes)) if ob in self.bulky[j]
                 else math.inf for j in range(self.n_aircraft) for ob in self.relevant[j]] + \
-            [math.inf] * self.n_separations
+            [math.inf] * (self.n_floors + self.n_separations)
 
 
 def _overlaps(box: np.ndarray, lo: list[float], hi: list[float]) -> bool:

@@ -26,6 +26,7 @@ from mal_planner.landing.guess import AircraftGuess
 from mal_planner.landing.layout import Event, PhaseLayout
 from mal_planner.landing.margins import Margins, SafetyMargins
 from mal_planner.landing.pairs import PhasePairs, all_pairs
+from mal_planner.landing.profile import gamma_bounds
 from mal_planner.obstacles import Gate
 from mal_planner.ocp import Phase, PhaseGuess, PhaseMesh, Problem
 from mal_planner.scales import Scales
@@ -300,8 +301,9 @@ def _phase_bounds(ctx: _Context, k: int, who: list[int], guess_span: tuple[float
         ac, cs = ctx.aircraft[i], layout.callsigns[i]
         out.states += [f"{cs}.{s}" for s in STATE_NAMES]
         out.controls += [f"{cs}.n_h", f"{cs}.n_v"]
-        lo = [*space_lo, -GAMMA_BOUND, -HEADING_BOUND]
-        hi = [*space_hi, GAMMA_BOUND, HEADING_BOUND]
+        gamma_lo, gamma_hi = gamma_bounds(ctx.scenario, ac, GAMMA_BOUND)
+        lo = [*space_lo, gamma_lo, -HEADING_BOUND]
+        hi = [*space_hi, gamma_hi, HEADING_BOUND]
         if gate is not None:  # keep each aircraft on its side of the gate plane in this phase
             if layout.approaching(k, i):
                 (lo if gate.direction < 0 else hi)[gate.axis] = gate.position

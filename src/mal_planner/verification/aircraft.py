@@ -31,8 +31,10 @@ def check_aircraft(scenario: Scenario, traj: Trajectory, t: np.ndarray, x: np.nd
     bank, n_v, bad_times = _controls(traj, aircraft, fail)
     limit_times += bad_times
     runway = _runway(scenario, aircraft, cs, x, tol, fail)
-    for text in procedure_breaks(scenario, aircraft, t, x):
-        fail((cs,), text)
+    for broken in procedure_breaks(scenario, aircraft, t, x):
+        fail((cs,), broken.text)
+        if broken.kept_by_nlp:  # broken between collocation points: refined there
+            limit_times.append(broken.time_s)
     if landing_times is not None and cs in landing_times and \
             abs(t[-1] - landing_times[cs]) > tol.landing_time_s:
         fail((cs,), f"{cs}: lands at {t[-1]:.3f} s, not the fixed {landing_times[cs]:.3f} s")

@@ -8,6 +8,8 @@ plus the height above it.
 
 from __future__ import annotations
 
+from typing import NamedTuple
+
 import numpy as np
 
 from mal_planner.performance import Performance, cas_of_tas, performance_of
@@ -19,9 +21,19 @@ FPM_PER_NM_S = nm_to_ft(60.0)
 """ft/min in one nm/s."""
 
 
-def procedure_breaks(scenario: Scenario, aircraft: Aircraft, t: np.ndarray, x: np.ndarray) -> list[str]:
-    """What ``aircraft``'s flown path ``(t, x)`` breaks of the scenario's procedures and its type's envelope (one
-    line each, at the first sample that breaks it); [] when the scenario has no procedures."""
+class Break(NamedTuple):
+    """A rule broken: one line naming the aircraft, its type, the value and the limit; when it first is; and whether
+    the NLP keeps the rule (:mod:`mal_planner.landing.profile`: a finer mesh there may mend it) or not (the speed
+    rules, which the constant-speed model cannot keep)."""
+
+    text: str
+    time_s: float
+    kept_by_nlp: bool
+
+
+def procedure_breaks(scenario: Scenario, aircraft: Aircraft, t: np.ndarray, x: np.ndarray) -> list[Break]:
+    """What ``aircraft``'s flown path ``(t, x)`` breaks of the scenario's procedures and its type's envelope (each
+    at the first sample that breaks it); [] when the scenario has no procedures."""
     rules = scenario.procedures
     if rules is None:
         return []
@@ -34,9 +46,11 @@ def procedure_breaks(scenario: Scenario, aircraft: Aircraft, t: np.ndarray, x: n
     course = float(scenario.runway_state[4])
     past = (x[:, 0] - scenario.runway_state[0]) * np.cos(course) + \
         (x[:, 1] - scenario.runway_state[1]) * np.sin(course) > 0.0
-    found = _speeds(rules, perf, cas, altitude, distance) + _vertical(rules, perf, vertical, x[:, 2]) + \
-        _profile(rules, height, distance, past)
-    return [f"{aircraft.callsign} ({perf.type_code}): {what} at t={t[k]:.1f} s" for what, k in found]
+    found = [(what, k, False) for what, k in _speeds(rules, perf, cas, altitude, distance)] + \
+        [(what, k, True) for what, k in _vertical(rules, perf, vertical, x[:, 2]) + _profile(rules, height, distance,
+                                                                                            past)]
+    return [Break(f"{aircraft.callsign} ({perf.type_code}): {what} at t={t[k]:.1f} s", float(t[k]), kept)
+            for what, k, kept in found]
 
 
 def _first(bad: np.ndarray) -> int | None:

@@ -1,0 +1,62 @@
+"""The arrival procedures as the landing NLP keeps them (a scenario with ``procedures:``; see
+:mod:`mal_planner.scenario.procedures`, which the verification checks with no tolerance).
+
+The NLP keeps them with margins of its own:
+
+* **Vertical speed**: the flight-path angle is bounded so that the airspeed times its sine stays inside the
+  rules' and the type's descent rate, less :data:`RATE_RESERVE` of it. Arrivals do not climb: the upper bound is
+  level flight, which leaves the rules' climb allowance (+1,500 ft/min, 1,000 ft) to the interpolation between
+  collocation points and to an aircraft that starts climbing.
+* **Minimum height**: above the threshold, at least the minimum height beyond the final distance (or the
+  aircraft's first height, if lower), and inside it a cone down to the threshold a little shallower than the
+  glide path: min(h, h + k (d - D)), with k such that the cone passes below the threshold. Inside the final
+  distance the rules ask nothing; the cone keeps low loops and dives near the runway out as well.
+
+The speed rules need the airspeed as a state: with the constant-speed model a plan keeps them only if the speed it
+starts with does.
+"""
+
+from __future__ import annotations
+
+import math
+
+import casadi as ca
+
+from mal_planner.performance import performance_of
+from mal_planner.scenario import Aircraft, Scenario
+
+RATE_RESERVE = 0.05
+"""The share of a vertical-speed limit the optimizer leaves free (between the collocation points the flight-path
+angle's polynomial may pass its bound a little; the verification allows nothing)."""
+CONE_UNDERSHOOT = 0.1
+"""The cone reaches zero height this share of the final distance before the threshold, so that the final
+state (at the threshold, on the floor) is inside it."""
+DISTANCE_SMOOTHING = 1e-3
+"""The distance to the threshold is sqrt(d^2 + e^2) with e this share of the final distance: smooth at the
+threshold itself (where the final state is), and never shorter than d, so the floor is only higher."""
+
+
+def gamma_bounds(scenario: Scenario, aircraft: Aircraft, default: float) -> tuple[float, float]:
+    """The flight-path angle bounds of ``aircraft`` in the NLP (rad): +-``default`` without procedures; else the
+    steepest descent the rules and the type allow (less the reserve) and level flight."""
+    rules = scenario.procedures
+    if rules is None:
+        return -default, default
+    perf = performance_of(scenario.type_of(aircraft))
+    descent = min(rules.max_descent_rate, -perf.descent_rate.low) * (1.0 - RATE_RESERVE)
+    return -math.asin(min(1.0, descent / aircraft.speed)), 0.0
+
+
+def floor_height(scenario: Scenario, aircraft: Aircraft, x, y):
+    """The lowest height above the threshold the NLP lets ``aircraft`` fly at horizontal position (x, y): the
+    profile's floor (None without procedures). Works on CasADi symbols."""
+    rules = scenario.procedures
+    if rules is None:
+        return None
+    runway = scenario.runway_state
+    first = float(aircraft.state0[2] - runway[2])
+    height = min(rules.min_height_nm, first)
+    slope = height / ((1.0 - CONE_UNDERSHOOT) * rules.final_distance_nm)
+    smoothing = DISTANCE_SMOOTHING * rules.final_distance_nm
+    distance = ca.sqrt((x - runway[0]) ** 2 + (y - runway[1]) ** 2 + smoothing**2)
+    return ca.fmin(height, height + slope * (distance - rules.final_distance_nm))
