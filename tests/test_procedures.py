@@ -146,3 +146,17 @@ def test_the_optimizer_keeps_the_profile_rules() -> None:
     for tr in kept.trajectories():
         z = tr.states[:, 2]  # level at most at the collocation points, a few feet between them
         assert float(np.max(z - np.minimum.accumulate(z))) < ft_to_nm(10.0)
+
+
+def test_a_high_aircraft_cannot_land_before_it_has_descended() -> None:
+    """7,900 ft high 3 nm out: 64 s in a straight line, but at the A320's steepest 2,890 ft/min (OpenAP) 164 s;
+    with procedures no plan that keeps them lands sooner, and the sequencer knows it."""
+    from mal_planner.sequencing.timing import earliest_landing_time, reachable_lower_bound
+
+    text = HIGH.replace("position: [12.0, 3.0, 1.3]", "position: [3.0, 0.0, 1.3]")
+    ruled, free = scenario_from_text(text + "procedures: {aircraft_type: A320}\n"), scenario_from_text(text)
+    high = ruled.aircraft_by_callsign("HIGH")
+    steepest = -performance_of("A320").descent_rate.low
+    assert reachable_lower_bound(ruled, high) == pytest.approx(1.3 / steepest)
+    assert reachable_lower_bound(free, free.aircraft_by_callsign("HIGH")) < 0.5 * 1.3 / steepest
+    assert earliest_landing_time(ruled, high) >= 1.3 / steepest

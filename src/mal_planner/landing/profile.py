@@ -22,7 +22,6 @@ import math
 
 import casadi as ca
 
-from mal_planner.performance import performance_of
 from mal_planner.scenario import Aircraft, Scenario
 
 RATE_RESERVE = 0.05
@@ -39,12 +38,10 @@ threshold itself (where the final state is), and never shorter than d, so the fl
 def gamma_bounds(scenario: Scenario, aircraft: Aircraft, default: float) -> tuple[float, float]:
     """The flight-path angle bounds of ``aircraft`` in the NLP (rad): +-``default`` without procedures; else the
     steepest descent the rules and the type allow (less the reserve) and level flight."""
-    rules = scenario.procedures
-    if rules is None:
+    limit = scenario.descent_rate_limit(aircraft)
+    if limit is None:
         return -default, default
-    perf = performance_of(scenario.type_of(aircraft))
-    descent = min(rules.max_descent_rate, -perf.descent_rate.low) * (1.0 - RATE_RESERVE)
-    return -math.asin(min(1.0, descent / aircraft.speed)), 0.0
+    return -math.asin(min(1.0, limit * (1.0 - RATE_RESERVE) / aircraft.speed)), 0.0
 
 
 def floor_height(scenario: Scenario, aircraft: Aircraft, x, y):

@@ -15,6 +15,7 @@ from mal_planner.dynamics import ControlLimits, DynamicsModel
 from mal_planner.errors import InvalidInput
 from mal_planner.geodesy import GeoFrame
 from mal_planner.obstacles import Gate, Superquadric
+from mal_planner.performance import performance_of
 from mal_planner.scenario.procedures import Procedures
 from mal_planner.scenario.sequencing import SequencingOptions
 from mal_planner.units import ft_to_nm
@@ -110,6 +111,13 @@ class Scenario:
     def type_of(self, aircraft: Aircraft) -> str | None:
         """The ICAO type ``aircraft`` flies as: its own, else the procedures' default (None: no type)."""
         return aircraft.type_code or (self.procedures.default_type if self.procedures else None)
+
+    def descent_rate_limit(self, aircraft: Aircraft) -> float | None:
+        """The steepest descent (nm/s, > 0) the procedures and ``aircraft``'s type allow (OpenAP's steepest
+        constant-CAS descent); None without procedures."""
+        if self.procedures is None:
+            return None
+        return min(self.procedures.max_descent_rate, -performance_of(self.type_of(aircraft)).descent_rate.low)
 
     @property
     def separation_radius_nm(self) -> float:

@@ -11,8 +11,9 @@ Two numbers per aircraft, both in seconds from the initial states:
   does to the straight route start -> hole -> runway (its air distance over its length, the wind triangle on
   each leg).
 * :func:`reachable_lower_bound`: a *proof* of impossibility: the straight-line distance from the start
-  through the nearest point of the hole to the runway, flown at full speed. A fixed landing time below it
-  cannot be met by any trajectory. In a wind: the straight line start -> runway at the best crab (exact: the
+  through the nearest point of the hole to the runway, flown at full speed, and with arrival procedures the
+  height flown down at the steepest descent they and the type allow. A fixed landing time below it cannot be met
+  by any trajectory that keeps the rules. In a wind: the straight line start -> runway at the best crab (exact: the
   ground moved is the air path plus the wind's drift), and the legs via the hole at the fastest ground speed
   V + |w|.
 """
@@ -69,6 +70,14 @@ def _nearest_hole_point(gate: Gate, point: np.ndarray) -> np.ndarray:
     return out
 
 
+def descent_time(scenario: Scenario, aircraft: Aircraft) -> float:
+    """The shortest time (s) ``aircraft`` takes down to the threshold at the steepest descent the scenario's
+    procedures and its type allow (0 without procedures)."""
+    limit = scenario.descent_rate_limit(aircraft)
+    height = float(aircraft.position[2] - scenario.runway_state[2])
+    return 0.0 if limit is None or height <= 0.0 else height / limit
+
+
 def reachable_lower_bound(scenario: Scenario, aircraft: Aircraft) -> float:
     """A landing time (s) no trajectory can beat: straight lines via the hole at full speed (in a wind: see the
     module docstring)."""
@@ -76,6 +85,7 @@ def reachable_lower_bound(scenario: Scenario, aircraft: Aircraft) -> float:
     dyn = aircraft.dynamics
     # Straight to the runway at the best crab: the air path covers (goal - start) - w t, at most V t long.
     direct = float(dyn.air_distance(goal - start)) / aircraft.speed
+    direct = max(direct, descent_time(scenario, aircraft))
     gate = scenario.gates[0] if scenario.gates else None
     if not _ahead_of(gate, aircraft):
         return direct
