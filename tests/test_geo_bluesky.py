@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import dataclasses
 import importlib.util
 import math
 import re
@@ -85,7 +86,11 @@ def test_local_scenario_needs_a_frame(tmp_path: Path) -> None:
     with pytest.raises(ValueError, match="give a frame"):
         scn_lines(local)
     path = write_scn(local, tmp_path / "t.scn", frame=GeoFrame(52.3, 4.76, -11.0, 180.0))
-    assert "CRE A1,A320,52." in path.read_text()
+    assert "CRE A1,A320,52." in path.read_text()  # no type in the scenario: the default
+    typed = dataclasses.replace(local, scenario=dataclasses.replace(local.scenario, aircraft=tuple(
+        dataclasses.replace(a, type_code="B738" if a.callsign == "A2" else None) for a in local.scenario.aircraft)))
+    text = "\n".join(scn_lines(typed, frame=GeoFrame(52.3, 4.76, -11.0, 180.0)))
+    assert "CRE A1,A320," in text and "CRE A2,B738," in text
 
 
 def test_isa_cas_at_sea_level_and_above() -> None:

@@ -74,6 +74,9 @@ def test_creates_in_blueskys_other_forms() -> None:
     assert [a["callsign"] for a in initial_aircraft(creates)] == ["KL204", "AF12", "BA1"]  # the first time only
     later = initial_aircraft(creates, at_s=120.0)
     assert [a["callsign"] for a in later] == ["KL204", "AF12", "BA1", "LATE"]
+    assert [a["aircraft_type"] for a in later] == ["B744", "A320", "A320", "A320"]  # types OpenAP knows
+    unknown = initial_aircraft(read_creates("00:00:00.00>CRE X1 ZZ99 52.1 4.5 90 FL70 250"))
+    assert "aircraft_type" not in unknown[0]  # no performance for it: the scenario's default type applies
     assert later[0]["lat"] == 52.0  # created again: BlueSky replaces it, so the last state counts
 
 

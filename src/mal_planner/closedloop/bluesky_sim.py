@@ -46,6 +46,7 @@ from mal_planner.geo.bluesky import (
     wind_command,
 )
 from mal_planner.geodesy import GeoFrame
+from mal_planner.performance import DEFAULT_TYPE
 from mal_planner.scales import Scales
 from mal_planner.scenario import Scenario
 from mal_planner.units import m_to_ft, nm_per_s_to_kt
@@ -53,7 +54,6 @@ from mal_planner.units import m_to_ft, nm_per_s_to_kt
 DEFAULT_FRAME = GeoFrame(49.02667786, 2.56169447, 392.0, 265.43)
 """Where a local scenario is flown: Paris-CDG 27R, where ``scenarios/thesis_geodetic.yaml`` places the thesis (an
 elevation above BlueSky's 50 ft, below which it applies no wind)."""
-AIRCRAFT_TYPE = "A320"
 EXTENSION_TURN_TIMES = 1.0
 """The route goes on this long past the plan's end, along its final line."""
 
@@ -68,8 +68,10 @@ class BlueSkySimulator(FlightSimulator):
 
     def __init__(self, scenario: Scenario, options: SimOptions | None = None, t0: float = 0.0,
                  frame: GeoFrame | None = None, workdir: str | Path | None = None,
-                 aircraft_type: str = AIRCRAFT_TYPE, bank_angle_max: float | None = None) -> None:
-        """``bank_angle_max`` (rad): the bank BlueSky turns at; None: each aircraft's limit, the plan's."""
+                 aircraft_type: str | None = None, bank_angle_max: float | None = None) -> None:
+        """``bank_angle_max`` (rad): the bank BlueSky turns at; None: each aircraft's limit, the plan's.
+        ``aircraft_type``: BlueSky's type of every aircraft; None: each one's in the scenario, else
+        :data:`~mal_planner.performance.DEFAULT_TYPE`."""
         options = options or SimOptions()
         if options.wind.gust_sigma > 0.0:
             raise ValueError("BlueSky flies a steady wind: no gusts (FlightSimulator has them)")
@@ -87,7 +89,8 @@ class BlueSkySimulator(FlightSimulator):
         commands += [wind] if wind else []
         for ac, spec in zip(self.aircraft, scenario.aircraft, strict=True):
             commands += create_commands(ac.callsign, self.frame, ac.state, nm_per_s_to_kt(ac.model.speed),
-                                        bank_angle_max or spec.limits.bank_angle_max, aircraft_type)
+                                        bank_angle_max or spec.limits.bank_angle_max,
+                                        aircraft_type or scenario.type_of(spec) or DEFAULT_TYPE)
         run_commands(self.bs, commands)
 
     # -- time ------------------------------------------------------------------------------------------

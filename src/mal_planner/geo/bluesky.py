@@ -24,7 +24,7 @@ from pathlib import Path
 import numpy as np
 
 from mal_planner.geodesy import GeoFrame
-from mal_planner.performance import cas_of_tas, tas_of_cas, tas_of_mach
+from mal_planner.performance import DEFAULT_TYPE, cas_of_tas, tas_of_cas, tas_of_mach
 from mal_planner.scales import Scales
 from mal_planner.units import METRES_PER_NM, ft_to_nm, kt_to_nm_per_s, m_to_ft, nm_per_s_to_kt
 
@@ -73,7 +73,7 @@ def detection_commands(scenario) -> list[str]:
 
 
 def create_commands(callsign: str, frame: GeoFrame, state: np.ndarray, tas_kt: float, bank_angle_max: float,
-                    aircraft_type: str = "A320") -> list[str]:
+                    aircraft_type: str = DEFAULT_TYPE) -> list[str]:
     """``CRE`` an aircraft at a local state [x, y, z, gamma, heading] (its heading made true at its position, its
     true airspeed made CAS) and ``BANK`` it at the plan's limit (rad)."""
     lat, lon, alt = frame.to_geodetic(state[:3])
@@ -103,11 +103,13 @@ def waypoint_interval_s(scenario) -> float:
     return Scales.of(scenario).time_s / WAYPOINTS_PER_RADIAN
 
 
-def scn_lines(result, frame: GeoFrame | None = None, aircraft_type: str = "A320",
+def scn_lines(result, frame: GeoFrame | None = None, aircraft_type: str | None = None,
               waypoint_dt_s: float | None = None) -> list[str]:
     """The ``.scn`` lines of a plan (a :class:`~mal_planner.pipeline.PlanResult`).
 
     ``frame`` places a local scenario on the Earth (default: the scenario's own, required when it has none);
+    ``aircraft_type`` is BlueSky's type of every aircraft (default: each one's type in the scenario, else
+    :data:`~mal_planner.performance.DEFAULT_TYPE`);
     ``waypoint_dt_s`` is the time between waypoints (default: :func:`waypoint_interval_s`).
     """
     scenario = result.scenario
@@ -129,7 +131,8 @@ def scn_lines(result, frame: GeoFrame | None = None, aircraft_type: str = "A320"
     for tr in result.trajectories():
         ac = scenario.aircraft_by_callsign(tr.callsign)
         tas_kt = nm_per_s_to_kt(ac.speed)
-        commands = create_commands(tr.callsign, frame, tr.states[0], tas_kt, ac.limits.bank_angle_max, aircraft_type)
+        commands = create_commands(tr.callsign, frame, tr.states[0], tas_kt, ac.limits.bank_angle_max,
+                                   aircraft_type or scenario.type_of(ac) or DEFAULT_TYPE)
         commands += route_commands(tr.callsign, frame, tr.t, tr.states, tas_kt, dt)
         lines += [at0 + c for c in commands]
         deletions.append((float(landing.get(tr.callsign, tr.t[-1])), tr.callsign))

@@ -11,13 +11,15 @@ commas or spaces), at the time of the first ``CRE`` (``--at`` another time: thos
   (OpenAP's atmosphere, as the export's :func:`~mal_planner.geo.bluesky.tas_to_cas_kt`).
 * Heading: BlueSky's true heading; in still air (as BlueSky creates aircraft) also the track, which the
   scenario's ``track_deg`` is; level flight (BlueSky creates aircraft level).
-* The aircraft type is kept as a comment only: a wake category is not guessed from it (set ``wake_category``
-  with ``--wake TYPE=CAT``, e.g. ``--wake A320=M --wake B744=H``).
+* The aircraft type becomes the aircraft's ``aircraft_type`` where OpenAP has its performance (else it is left out,
+  with a warning); a wake category is not guessed from it (set ``wake_category`` with ``--wake TYPE=CAT``, e.g.
+  ``--wake A320=M --wake B744=H``).
 """
 
 from __future__ import annotations
 
 import argparse
+import logging
 import re
 import sys
 from dataclasses import dataclass
@@ -26,6 +28,9 @@ from pathlib import Path
 import yaml
 
 from mal_planner.geo.bluesky import cas_to_tas_kt, mach_to_tas_kt
+from mal_planner.performance import UnknownAircraftType, known_type
+
+log = logging.getLogger("mal_planner.geo.bluesky_import")
 
 _TIME = re.compile(r"^\s*(\d+):(\d{1,2}):(\d{1,2}(?:\.\d*)?)\s*>\s*(.*)$")
 _CREATE = ("CRE", "CREATE")
@@ -125,6 +130,11 @@ def initial_aircraft(created: list[Created], at_s: float | None = None,
                  "track_deg": c.heading_deg, "flight_path_angle_deg": 0.0, "speed_kt": round(c.tas_kt, 6)}
         if c.aircraft_type in wake:
             entry["wake_category"] = wake[c.aircraft_type]
+        try:
+            entry["aircraft_type"] = known_type(c.aircraft_type)
+        except UnknownAircraftType:
+            log.warning("%s: type %r has no OpenAP performance: left out (the scenario's default type applies)",
+                        c.callsign, c.aircraft_type)
         out.append(entry)
     return out
 
