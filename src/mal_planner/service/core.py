@@ -98,7 +98,7 @@ class PlanningService:
         with self._lock:
             gone = self.intake.lose_tracks()
             for cs in gone:
-                log.info("aircraft %s not seen for %.0f s: dropped", cs, self.rules.track_timeout_s)
+                log.info("aircraft %s not seen for %g s: dropped", cs, self.rules.track_timeout_s)
             if not gone:
                 return []
             withdrawn = self.book.withdraw(gone, f"track lost (not seen for {self.rules.track_timeout_s:g} s)")
