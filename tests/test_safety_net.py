@@ -202,6 +202,36 @@ def test_a_late_plan_is_re_anchored_to_where_the_aircraft_are(first_plan: Closed
     assert isinstance(stale, Stale) and "more than 0.125 nm" in stale.reason
 
 
+def test_a_plan_that_would_turn_an_aircraft_out_of_the_airspace_is_stale(thesis) -> None:
+    """Re-anchoring moves positions, not headings. A plan east reaching an aircraft that flies west (half way round a
+    hold) 0.4 nm from the western edge turns it round: it strays about two turn radii (0.6 nm) and leaves; in the
+    middle of the airspace, or flying east already, the same plan is handed out."""
+    from mal_planner.scales import Scales, level_turn_radius
+    from mal_planner.service.reanchor import turn_stray, unsafe_offsets
+
+    scales, minima, radius = Scales.of(thesis), Minima.of(thesis), level_turn_radius(thesis.aircraft[0])
+    t = np.linspace(0.0, 100.0, 201)
+
+    def straight(x0: float, heading: float) -> Reference:
+        states = np.column_stack([x0 + 0.04 * t * math.cos(heading), np.full_like(t, 3.0), np.full_like(t, 0.15),
+                                  np.zeros_like(t), np.full_like(t, heading)])
+        return Reference(t, states)
+
+    def why(x0: float, flying_heading: float) -> str | None:
+        plan = straight(x0, 0.0)
+        stray = turn_stray(plan, straight(x0, flying_heading), 0.0, radius)
+        return unsafe_offsets({"A1": plan}, {"A1": np.zeros(3)}, 0.0, scales, minima, thesis.airspace, 0.05,
+                              strays={"A1": stray})
+
+    edge = float(thesis.airspace[0, 0]) + 0.4
+    assert turn_stray(straight(edge, 0.0), straight(edge, math.pi), 0.0, radius) == pytest.approx(2.0 * radius)
+    assert turn_stray(straight(edge, 0.0), None, 0.0, radius) == 0.0
+    assert "A1 would stray 0.6" in why(edge, math.pi) and "turning onto its plan" in why(edge, math.pi)
+    assert why(edge, 0.0) is None  # flying east already
+    assert why(edge, math.radians(15.0)) is None  # a small turn strays less than the deviation threshold
+    assert why(0.0, math.pi) is None  # turning round in the middle of the airspace
+
+
 def test_with_a_planner_that_fails_every_other_replan_the_thesis_stays_safe(thesis) -> None:
     """The thesis in an unknown wind (its plans drift and are replanned), every other replan failing on purpose and
     the others 10 s late (and no later, so that the run does not depend on the machine's speed): no loss of

@@ -18,10 +18,10 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
-from mal_planner.scales import Scales
+from mal_planner.scales import Scales, level_turn_radius
 from mal_planner.service.conflicts import Minima
 from mal_planner.service.fallback import Fallback
-from mal_planner.service.reanchor import fade_time, reanchored, unsafe_offsets
+from mal_planner.service.reanchor import fade_time, reanchored, turn_stray, unsafe_offsets
 from mal_planner.service.request import PlanRequest
 from mal_planner.service.rules import ServiceRules
 from mal_planner.service.tracks import Track
@@ -155,8 +155,10 @@ class PlanBook:
             refs = {cs: Reference(tr.t + result.start_time, tr.states) for cs, tr in trajectories.items()}
             others = None if request.traffic is None else {  # a replan of what changed: clear of the others too
                 cs: ref for cs, ref in self.instructions().items() if cs in tracked and cs not in refs}
+            strays = {cs: turn_stray(ref, self.instruction(cs), now, level_turn_radius(
+                result.scenario.aircraft_by_callsign(cs))) for cs, ref in refs.items() if cs in offsets}
             why = None if self.rules.deviation_nm <= 0 else unsafe_offsets(  # 0: the tracks do not follow plans
-                refs, offsets, now, scales, minima, result.scenario.airspace, self.rules.deviation_nm, others)
+                refs, offsets, now, scales, minima, result.scenario.airspace, self.rules.deviation_nm, others, strays)
             if why is not None:  # the aircraft keep what they fly; the policy asks again at once
                 self.last_arrival = -math.inf
                 events.append(Stale(request, f"stale: {why}, {now - request.plan_start:.1f} s after the tracks it "

@@ -8,6 +8,12 @@ aircraft starts on its plan and joins the planned path by the end of the fade (t
 any offset, and so keeps the planned times). A plan is stale only when that is unsafe: an offset of more than half
 the separation or the deviation threshold (it was made for another picture), a re-anchored path closer than a
 path accuracy to the airspace's edge (unless the aircraft is already), or two closer than the minimum during the fade.
+
+Re-anchoring moves positions, not headings: an aircraft whose ground track at the hand-out is far from its plan's
+turns onto it and strays sideways by about R (1 - cos d), R its turn radius and d the angle (2R turning round; 20
+aircraft, traffic-0002: a plan reached T20 half way round its hold 1.5 nm from the airspace's edge, and it left the
+airspace by 0.46 nm turning onto it). Where that stray is more than the deviation threshold (which the margins of
+flown plans cover), the re-anchored path must keep it from the airspace's horizontal edges during the fade.
 """
 
 from __future__ import annotations
@@ -44,13 +50,25 @@ def reanchored(traj: Trajectory, offset: np.ndarray, at: float, fade_s: float) -
     return replace(traj, states=states, meta=meta)
 
 
+def turn_stray(plan: Reference, flying: Reference | None, now: float, radius_nm: float) -> float:
+    """How far (nm) an aircraft flying ``flying`` strays sideways turning onto ``plan`` at ``now``: R (1 - cos d) for
+    the angle d between their ground tracks there, with R = ``radius_nm``; 0 without an instruction."""
+    if flying is None:
+        return 0.0
+    a, b = flying.sample(now)[5:7], plan.sample(now)[5:7]
+    norms = float(np.linalg.norm(a) * np.linalg.norm(b))
+    return 0.0 if norms == 0.0 else radius_nm * (1.0 - float(np.dot(a, b)) / norms)
+
+
 def unsafe_offsets(refs: Mapping[str, Reference], offsets: Mapping[str, np.ndarray], now: float, scales: Scales,
                    minima: Minima, airspace: np.ndarray, deviation_nm: float = 0.0,
-                   others: Mapping[str, Reference] | None = None) -> str | None:
+                   others: Mapping[str, Reference] | None = None, strays: Mapping[str, float] | None = None
+                   ) -> str | None:
     """Why re-anchoring ``refs`` by ``offsets`` at ``now`` is unsafe (one line), or None (see the module
     docstring); ``deviation_nm``: the service's deviation threshold, the largest offset where it is larger than half
     the separation (the margins of flown plans are sized to it); ``others``: what the aircraft outside the plan fly
-    (a replan of what changed), which the moved paths must keep the minimum from too."""
+    (a replan of what changed), which the moved paths must keep the minimum from too; ``strays``: how far each
+    aircraft strays turning onto its plan (:func:`turn_stray`)."""
     limit = max(MAX_OFFSET_SEPARATIONS * minima.horizontal_nm, deviation_nm)
     for cs, off in offsets.items():
         d = float(np.linalg.norm(off))
@@ -59,8 +77,9 @@ def unsafe_offsets(refs: Mapping[str, Reference], offsets: Mapping[str, np.ndarr
     times = now + np.linspace(0.0, scales.seconds(REANCHOR_TURN_TIMES), 33)
     moved, live = {}, {}
 
-    def outside(path: np.ndarray) -> np.ndarray:
-        return np.max(np.maximum(airspace[:, 0] - path, path - airspace[:, 1]), axis=1)
+    def outside(path: np.ndarray) -> np.ndarray:  # (x, y) or (x, y, z) columns
+        box = airspace[: path.shape[1]]
+        return np.max(np.maximum(box[:, 0] - path, path - box[:, 1]), axis=1)
 
     inside = -scales.accuracy_nm  # a path accuracy inside (a flown path strays about that far from its plan)
     for cs, ref in refs.items():
@@ -72,6 +91,9 @@ def unsafe_offsets(refs: Mapping[str, Reference], offsets: Mapping[str, np.ndarr
         bound = np.maximum(np.maximum(outside(planned), out[0]), inside)
         if np.any((out > bound + 1e-12)[1:] & live[cs][1:]):
             return f"{cs} would leave the airspace on the plan moved to where it is"
+        stray = (strays or {}).get(cs, 0.0)
+        if stray > deviation_nm and np.any((outside(moved[cs][:, :2]) + stray > 0.0) & live[cs]):
+            return f"{cs} would stray {stray:.2f} nm out of the airspace turning onto its plan"
     fixed = {cs: ref.positions(times) for cs, ref in (others or {}).items() if cs not in moved}
     live |= {cs: times <= (others or {})[cs].end for cs in fixed}
     pairs = [*itertools.combinations(sorted(moved), 2), *itertools.product(sorted(moved), sorted(fixed))]
