@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import dataclasses
 import math
 
 import numpy as np
@@ -160,3 +161,18 @@ def test_a_high_aircraft_cannot_land_before_it_has_descended() -> None:
     assert reachable_lower_bound(ruled, high) == pytest.approx(1.3 / steepest)
     assert reachable_lower_bound(free, free.aircraft_by_callsign("HIGH")) < 0.5 * 1.3 / steepest
     assert earliest_landing_time(ruled, high) >= 1.3 / steepest
+
+
+def test_an_aircraft_starting_at_the_minimum_height_starts_above_the_nlps_floor() -> None:
+    """The floor of an aircraft that starts at (or below) the minimum height beyond 4 nm is its first height less
+    the NLP's margin: it starts above it (the margin the NLP keeps), and the rule's own floor is its first height."""
+    from mal_planner.landing.profile import floor_height
+
+    sc = real()
+    slow = sc.aircraft[0]  # 10 nm out
+    at_minimum = dataclasses.replace(slow, state0=np.array([10.0, 4.0, ft_to_nm(1000.0), 0.0, math.pi]))
+    margin = 1e-3
+    for ac in (slow, at_minimum):
+        floor = float(floor_height(sc, ac, *ac.state0[:2], margin))
+        assert ac.state0[2] - floor >= margin - 1e-12
+        assert floor <= ft_to_nm(1000.0)

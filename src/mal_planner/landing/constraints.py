@@ -166,7 +166,7 @@ class PhaseConstraints:
         runway_z = float(self.scenario.runway_state[2])
         out = []
         for j, ac in enumerate(self.aircraft):
-            floor = floor_height(self.scenario, ac, x[5 * j], x[5 * j + 1])
+            floor = floor_height(self.scenario, ac, x[5 * j], x[5 * j + 1], self.margins.airspace_nm)
             if floor is not None:
                 out.append(x[5 * j + 2] - runway_z - floor)
         return out

@@ -44,15 +44,17 @@ def gamma_bounds(scenario: Scenario, aircraft: Aircraft, default: float) -> tupl
     return -math.asin(min(1.0, limit * (1.0 - RATE_RESERVE) / aircraft.speed)), 0.0
 
 
-def floor_height(scenario: Scenario, aircraft: Aircraft, x, y):
-    """The lowest height above the threshold the NLP lets ``aircraft`` fly at horizontal position (x, y): the
-    profile's floor (None without procedures). Works on CasADi symbols."""
+def floor_height(scenario: Scenario, aircraft: Aircraft, x, y, margin_nm: float):
+    """The lowest height above the threshold the NLP lets ``aircraft`` fly at horizontal position (x, y), less
+    ``margin_nm`` (which the NLP keeps above it): the profile's floor (None without procedures). An aircraft that
+    starts lower than the minimum height has its first height less the margin as its floor, so that it starts above
+    it. Works on CasADi symbols."""
     rules = scenario.procedures
     if rules is None:
         return None
     runway = scenario.runway_state
     first = float(aircraft.state0[2] - runway[2])
-    height = min(rules.min_height_nm, first)
+    height = min(rules.min_height_nm, first - margin_nm)
     slope = height / ((1.0 - CONE_UNDERSHOOT) * rules.final_distance_nm)
     smoothing = DISTANCE_SMOOTHING * rules.final_distance_nm
     distance = ca.sqrt((x - runway[0]) ** 2 + (y - runway[1]) ** 2 + smoothing**2)
