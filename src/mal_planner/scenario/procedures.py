@@ -1,11 +1,12 @@
 """The arrival procedures a controller holds a plan to (``procedures:`` in a scenario file), in planner units.
 
 A scenario at a real airport names them; the thesis's small airspace has none. The defaults are the rules of
-issue 33, as a controller would check an arrival: at or below 250 kt below 10,000 ft (ICAO Annex 11, Appendix 4:
-250 kt IAS below 3,050 m for IFR flights in classes D to G, and common in terminal areas), at or below 180 kt inside 4 nm of the threshold (the usual
-speed-control instruction to the outer marker), vertical speed within -3,500 / +1,500 ft/min and within the
-type's envelope (:mod:`mal_planner.performance`), no climb of more than 1,000 ft, at least 1,000 ft above the
-threshold beyond 4 nm (a minimum vectoring altitude), and no turning away from the runway below 1,000 ft.
+issue 33, as a controller would check an arrival: at or below 250 kt below 10,000 ft (ICAO Annex 11, Appendix
+4: 250 kt IAS below 3,050 m for IFR flights in classes D to G, and common in terminal areas), at or below 180 kt
+inside 4 nm of the threshold (the usual speed-control instruction to the outer marker), vertical speed within
+-3,500 / +1,500 ft/min and within the type's envelope (:mod:`mal_planner.performance`), no climb of more than
+1,000 ft, at least 1,000 ft above the threshold beyond 4 nm (a minimum vectoring altitude), and no turning away
+from the runway below 1,000 ft.
 
 Altitudes are the threshold's elevation plus the height above it, taken as pressure altitudes in the ISA (no QNH
 correction: at CDG's 392 ft, a QNH 20 hPa off standard moves FL100 by about 550 ft).
