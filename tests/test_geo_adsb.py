@@ -106,6 +106,10 @@ def test_converter_on_synthetic_tracks():
     assert data["separation"] == {"distance_nm": 3.0, "landing_spacing_s": 90.0, "max_landing_spacing_s": 180.0}
     assert data["runway"]["flight_path_angle_deg"] == -3.0
     assert data["limits"] == {"bank_angle_deg": 30.0, "n_h": [-1.0, 1.0], "n_v": [0.7, 1.3]}
+    assert "procedures" not in data and "model" not in data["aircraft"][0]
+    flyable = adsb.scenario_data(airport, "synthetic", flyable=True)  # airliners under the default procedures
+    assert flyable["procedures"] == {"aircraft_type": "A320"}
+    assert {a["model"] for a in flyable["aircraft"]} == {"point_mass_airspeed"}
 
 
 def test_cdg_scenario_loads_inside_its_airspace():

@@ -122,17 +122,18 @@ name: high
 runway: {position: [0.0, 0.0, 0.0], flight_path_angle_deg: -3.0, heading_deg: 180.0}
 airspace: {x: [-20.0, 20.0], y: [-20.0, 20.0], z: [0.0, 2.0]}
 aircraft:
-  - {callsign: HIGH, position: [12.0, 3.0, 1.3], flight_path_angle_deg: 0.0, heading_deg: 180.0, speed: 0.0472}
-  - {callsign: LOW, position: [14.0, -6.0, 0.5], flight_path_angle_deg: 0.0, heading_deg: 150.0, speed: 0.0472}
+  - {callsign: HIGH, position: [12.0, 3.0, 1.3], flight_path_angle_deg: 0.0, heading_deg: 180.0, speed: 0.0414}
+  - {callsign: LOW, position: [14.0, -6.0, 0.5], flight_path_angle_deg: 0.0, heading_deg: 150.0, speed: 0.0414}
 separation: {distance_nm: 3.0, landing_spacing_s: 90.0, max_landing_spacing_s: 180.0}
 limits: {bank_angle_deg: 30.0, n_h: [-1.0, 1.0], n_v: [0.7, 1.3]}
 """
 
 
 def test_the_optimizer_keeps_the_profile_rules() -> None:
-    """HIGH starts 7,900 ft high 12 nm out at 170 kt: without the procedures its plan climbs 4,200 ft and dives at
-    23 deg (for room: its landing is 90 s after nobody); with them it descends within the A320's rate, never climbs
-    and is verified under every rule (its speed keeps the speed rules)."""
+    """HIGH starts 7,900 ft high 12 nm out at 149 kt true airspeed: without the procedures its plan climbs (for room:
+    its landing is 90 s after nobody); with them it descends within the A320's rate, never climbs and is verified
+    under every rule (its constant speed keeps the speed rules: 132 kt CAS up there, 149 kt over the threshold, the
+    A320's final approach speeds being 130-150 kt)."""
     from mal_planner.options import PlanOptions
     from mal_planner.pipeline import plan
 

@@ -36,7 +36,7 @@ TURN_AWAY_FACTOR = 2.0
 def initial_velocity(ac: Aircraft) -> np.ndarray:
     """``ac``'s ground velocity (nm/s) at its initial state (wind included: the dynamics model's own)."""
     state = np.asarray(ac.state0, float)
-    return np.asarray(ac.dynamics.rhs(state, np.array([0.0, math.cos(state[3])])), float)[:3]
+    return np.asarray(ac.dynamics.rhs(state, ac.dynamics.level_flight_control(state[3])), float)[:3]
 
 
 def turn_away_nm(ac: Aircraft, velocity: np.ndarray, axis: int, side: int) -> float:

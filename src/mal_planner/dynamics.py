@@ -11,7 +11,7 @@ flight-path angle and heading, and the ground velocity is the air velocity plus 
 
 States are (x, y, z, gamma, phi) in nm and rad, controls (n_h, n_v) are load factors. Models live in a
 registry keyed by name, so a scenario can give each aircraft its own model (e.g. a slower rotorcraft
-with other limits) without touching the planner.
+with other limits, or :class:`AirspeedModel`, whose airspeed is a state) without touching the planner.
 """
 
 from __future__ import annotations
@@ -26,6 +26,8 @@ import numpy as np
 
 STATE_NAMES: tuple[str, ...] = ("x", "y", "z", "gamma", "heading")
 CONTROL_NAMES: tuple[str, ...] = ("n_h", "n_v")
+AIRSPEED_STATE_NAMES: tuple[str, ...] = (*STATE_NAMES, "airspeed")
+AIRSPEED_CONTROL_NAMES: tuple[str, ...] = (*CONTROL_NAMES, "n_x")
 GRAVITY_NM_S2: float = 0.0052952
 """Acceleration due to gravity in nm/s^2 (the thesis's value)."""
 
@@ -51,6 +53,9 @@ class ControlLimits:
     n_v: tuple[float, float] = (0.0, 2.0)
     bank_angle_max: float = float(np.radians(45.0))
     """Largest |bank angle| in rad; the bank angle is atan(n_h / n_v) (thesis eq. 2-6)."""
+    n_x: tuple[float, float] = (0.0, 0.0)
+    """Longitudinal load factor (thrust - drag) / weight (:class:`AirspeedModel` only; the loader sets it from the
+    aircraft type's performance)."""
 
 
 @dataclass(frozen=True)
@@ -77,23 +82,32 @@ class DynamicsModel:
     def n_controls(self) -> int:
         return len(self.control_names)
 
+    def airspeed(self, state: Any) -> Any:
+        """The airspeed (nm/s) in ``state``: the constant V here."""
+        return self.speed
+
     def rhs(self, state: Any, control: Any) -> Any:
         """Time derivative of ``state`` (rows x, y, z, gamma, phi; any trailing shape) under ``control``."""
         xp = array_module(state, control)
+        return _stack(xp, self._point_mass_rates(xp, state, control))
+
+    def _point_mass_rates(self, xp: Any, state: Any, control: Any) -> list:
         gamma, phi = state[3], state[4]
         n_h, n_v = control[0], control[1]
-        v, g = self.speed, self.gravity
+        v, g = self.airspeed(state), self.gravity
         cos_gamma = xp.cos(gamma)
-        return _stack(
-            xp,
-            [
-                v * cos_gamma * xp.cos(phi) + self.wind_x,
-                v * cos_gamma * xp.sin(phi) + self.wind_y,
-                v * xp.sin(gamma),
-                g / v * (n_v - cos_gamma),
-                g / v * n_h / cos_gamma,
-            ],
-        )
+        return [
+            v * cos_gamma * xp.cos(phi) + self.wind_x,
+            v * cos_gamma * xp.sin(phi) + self.wind_y,
+            v * xp.sin(gamma),
+            g / v * (n_v - cos_gamma),
+            g / v * n_h / cos_gamma,
+        ]
+
+    def lagrange(self, state: Any, control: Any) -> Any:
+        """The thesis's cost integrand: gamma'^2 + phi'^2 (rad^2/s^2)."""
+        g_rate, h_rate = self.angle_rates(state, control)
+        return g_rate**2 + h_rate**2
 
     def angle_rates(self, state: Any, control: Any) -> tuple[Any, Any]:
         """(gamma', phi'): the rates in the thesis's Lagrange cost."""
@@ -180,6 +194,43 @@ class DynamicsModel:
         """Controls that hold gamma and heading constant (n_h = 0, n_v = cos gamma)."""
         return np.array([0.0, np.cos(gamma)])
 
+    def initial_state(self, position: Any, gamma: float, heading: float) -> np.ndarray:
+        """The state at ``position`` flying (``gamma``, ``heading``) at the model's airspeed."""
+        return np.array([*position, gamma, heading], dtype=float)
+
+
+@dataclass(frozen=True)
+class AirspeedModel(DynamicsModel):
+    """The thesis's point mass with its airspeed as a sixth state, driven by the longitudinal load factor n_x =
+    (thrust - drag) / weight: V' = g (n_x - sin gamma) (the energy equation of the point mass; e.g. Vinh, *Flight
+    Mechanics of High-Performance Aircraft*, 1993, eq. 3.4). A descent at idle thrust (n_x < 0 but small) slows the
+    aircraft only a little: the "down or slow down" of arrival procedures. ``speed`` is the airspeed it starts with
+    (the guesses fly it)."""
+
+    name: ClassVar[str] = "point_mass_airspeed"
+    state_names: ClassVar[tuple[str, ...]] = AIRSPEED_STATE_NAMES
+    control_names: ClassVar[tuple[str, ...]] = AIRSPEED_CONTROL_NAMES
+
+    def airspeed(self, state: Any) -> Any:
+        return state[5]
+
+    def rhs(self, state: Any, control: Any) -> Any:
+        xp = array_module(state, control)
+        rows = self._point_mass_rates(xp, state, control)
+        return _stack(xp, [*rows, self.gravity * (control[2] - xp.sin(state[3]))])
+
+    def lagrange(self, state: Any, control: Any) -> Any:
+        """gamma'^2 + phi'^2 + (V' / V)^2: the relative speed change costs as much as a turn at the same rate."""
+        rates = self.rhs(state, control)
+        return rates[3] ** 2 + rates[4] ** 2 + (rates[5] / state[5]) ** 2
+
+    def level_flight_control(self, gamma: Any = 0.0) -> np.ndarray:
+        """Controls that hold gamma, heading and airspeed constant."""
+        return np.array([0.0, np.cos(gamma), np.sin(gamma)])
+
+    def initial_state(self, position: Any, gamma: float, heading: float) -> np.ndarray:
+        return np.array([*position, gamma, heading, self.speed], dtype=float)
+
 
 def stacked_model(models: Sequence[DynamicsModel], index: Any = None) -> DynamicsModel:
     """One model standing for several vehicles of one type, to evaluate them all in one NumPy call.
@@ -241,6 +292,7 @@ def register_dynamics(cls: type[DynamicsModel]) -> type[DynamicsModel]:
 
 register_dynamics(DynamicsModel)
 register_dynamics(Rotorcraft)
+register_dynamics(AirspeedModel)
 
 
 def make_dynamics(name: str, speed: float, **params: float) -> DynamicsModel:

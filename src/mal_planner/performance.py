@@ -61,6 +61,12 @@ class Performance:
     """Vertical speed on the final approach (WRAP ``finalapp_vs``)."""
     climb_rate: Band
     """Vertical speed of the constant-CAS climb (WRAP ``climb_vs_concas``)."""
+    longitudinal: Band
+    """Longitudinal load factor (thrust - drag) / weight (dimensionless): low at idle thrust with the landing gear
+    down (which an airliner may lower from about 250 kt; on the final approach it is down), high at climb thrust
+    clean, both the weakest of :data:`LONGITUDINAL_CONDITIONS_FT` (OpenAP's drag polar and thrust model, at the mean
+    of the operating empty and the maximum landing mass); default 0. Speed brakes and flaps, which OpenAP's polar
+    barely models, slow a real aircraft more: the low end is what it can always do."""
     source: str
     """Where the numbers come from, with the library's version (e.g. 'OpenAP 2.6.2: A320')."""
 
@@ -111,6 +117,7 @@ def performance_of(type_code: str | None = None) -> Performance:
         descent_rate=_band(wrap.descent_vs_concas()),
         final_descent_rate=_band(wrap.finalapp_vs()),
         climb_rate=_band(wrap.climb_vs_concas()),
+        longitudinal=_longitudinal(code, props, wrap),
         source=f"OpenAP {version('openap')}: {code}",
     )
 
@@ -129,6 +136,31 @@ def _openap_type(code: str):
         raise UnknownAircraftType(f"aircraft type {code!r} is not in OpenAP {version('openap')} (known: "
                                   f"{', '.join(sorted(known))})")
     return prop.aircraft(code, use_synonym=True), WRAP(code, use_synonym=True)
+
+
+LONGITUDINAL_CONDITIONS_FT = (1000.0, 10000.0, 20000.0)
+"""Pressure altitudes (ft) at which :attr:`Performance.longitudinal` is evaluated: on the final approach at its
+speed, and in the constant-CAS descent at its speed (WRAP defaults)."""
+
+
+def _longitudinal(code: str, props: dict, wrap) -> Band:
+    """(thrust - drag) / weight in level flight at idle thrust with the landing gear down and at climb thrust clean,
+    the weakest over the conditions."""
+    from openap import Drag, Thrust, aero
+
+    drag, thrust = Drag(code, use_synonym=True), Thrust(code, use_synonym=True)
+    mass = 0.5 * (float(props["oew"]) + float(props["mlw"]))
+    weight = mass * aero.g0
+    idle, climb = [], []
+    for alt_ft in LONGITUDINAL_CONDITIONS_FT:
+        cas = wrap.finalapp_vcas()["default"] if alt_ft == LONGITUDINAL_CONDITIONS_FT[0] else \
+            wrap.descent_const_vcas()["default"]
+        tas_kt = aero.cas2tas(cas, alt_ft * aero.ft) / aero.kts
+        gear_down = float(drag.nonclean(mass=mass, tas=tas_kt, alt=alt_ft, flap_angle=0.0, landing_gear=True))
+        idle.append((float(thrust.descent_idle(tas=tas_kt, alt=alt_ft)) - gear_down) / weight)
+        climb.append((float(thrust.climb(tas=tas_kt, alt=alt_ft, roc=0.0)) - drag.clean(mass=mass, tas=tas_kt,
+                                                                                       alt=alt_ft)) / weight)
+    return Band(0.0, max(idle), min(climb))
 
 
 def _band(parameter: dict) -> Band:

@@ -10,7 +10,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from mal_planner.dynamics import CONTROL_NAMES, STATE_NAMES
+from mal_planner.dynamics import AIRSPEED_CONTROL_NAMES, AIRSPEED_STATE_NAMES, CONTROL_NAMES, STATE_NAMES
 
 
 def closest_approach(a_t: np.ndarray, a_pos: np.ndarray, b_t: np.ndarray, b_pos: np.ndarray) -> float:
@@ -28,18 +28,34 @@ class Trajectory:
     t: np.ndarray
     """(n,) times in s."""
     states: np.ndarray
-    """(n, 5): x, y, z (nm), flight-path angle, heading (rad)."""
+    """(n, 5): x, y, z (nm), flight-path angle, heading (rad); (n, 6) with the airspeed (nm/s) of the airspeed
+    model."""
     controls: np.ndarray | None = None
-    """(n, 2): n_h, n_v, or None where only the path is known (the initializer)."""
+    """(n, 2): n_h, n_v ((n, 3) with n_x: the airspeed model), or None where only the path is known (the
+    initializer)."""
     phase: np.ndarray | None = None
     """(n,) index of the optimizer phase each sample belongs to, or None."""
     meta: dict = field(default_factory=dict)
 
     def __post_init__(self) -> None:
-        if self.states.shape != (len(self.t), len(STATE_NAMES)):
-            raise ValueError(f"{self.callsign}: states shape {self.states.shape} != ({len(self.t)}, 5)")
-        if self.controls is not None and self.controls.shape != (len(self.t), len(CONTROL_NAMES)):
-            raise ValueError(f"{self.callsign}: controls shape {self.controls.shape} != ({len(self.t)}, 2)")
+        if self.states.ndim != 2 or self.states.shape[0] != len(self.t) or self.states.shape[1] not in (5, 6):
+            raise ValueError(f"{self.callsign}: states shape {self.states.shape} != ({len(self.t)}, 5 or 6)")
+        if self.controls is not None and self.controls.shape != (len(self.t), self.states.shape[1] - 3):
+            raise ValueError(f"{self.callsign}: controls shape {self.controls.shape} != ({len(self.t)}, "
+                             f"{self.states.shape[1] - 3})")
+
+    @property
+    def state_names(self) -> tuple[str, ...]:
+        return STATE_NAMES if self.states.shape[1] == len(STATE_NAMES) else AIRSPEED_STATE_NAMES
+
+    @property
+    def control_names(self) -> tuple[str, ...]:
+        return CONTROL_NAMES if self.states.shape[1] == len(STATE_NAMES) else AIRSPEED_CONTROL_NAMES
+
+    @property
+    def airspeed(self) -> np.ndarray | None:
+        """(n,) airspeed (nm/s) of an airspeed-model plan; None: the model's constant one."""
+        return self.states[:, 5] if self.states.shape[1] > 5 else None
 
     @property
     def positions(self) -> np.ndarray:
@@ -52,12 +68,12 @@ class Trajectory:
         return np.stack([np.interp(t, self.t, states[:, k]) for k in range(states.shape[1])], axis=-1)
 
     def to_dict(self) -> dict:
-        """JSON-ready columns: t, x, y, z, gamma, heading [, n_h, n_v, phase]."""
+        """JSON-ready columns: t, x, y, z, gamma, heading [, airspeed] [, n_h, n_v [, n_x], phase]."""
         out: dict = {"t": self.t.tolist()}
-        for k, name in enumerate(STATE_NAMES):
+        for k, name in enumerate(self.state_names):
             out[name] = self.states[:, k].tolist()
         if self.controls is not None:
-            for k, name in enumerate(CONTROL_NAMES):
+            for k, name in enumerate(self.control_names):
                 out[name] = self.controls[:, k].tolist()
         if self.phase is not None:
             out["phase"] = [int(p) for p in self.phase]
@@ -65,10 +81,13 @@ class Trajectory:
 
     @classmethod
     def from_dict(cls, callsign: str, data: dict) -> Trajectory:
-        states = np.column_stack([np.asarray(data[name], float) for name in STATE_NAMES])
+        airspeed = "airspeed" in data
+        states = np.column_stack([np.asarray(data[name], float)
+                                  for name in (AIRSPEED_STATE_NAMES if airspeed else STATE_NAMES)])
         controls = None
-        if all(name in data for name in CONTROL_NAMES):
-            controls = np.column_stack([np.asarray(data[name], float) for name in CONTROL_NAMES])
+        names = AIRSPEED_CONTROL_NAMES if airspeed else CONTROL_NAMES
+        if all(name in data for name in names):
+            controls = np.column_stack([np.asarray(data[name], float) for name in names])
         phase = np.asarray(data["phase"], int) if "phase" in data else None
         return cls(callsign, np.asarray(data["t"], float), states, controls, phase)
 

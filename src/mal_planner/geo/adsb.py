@@ -53,6 +53,7 @@ from mal_planner.geo.adsb_tracks import (
 )
 from mal_planner.geo.runways import Runway, runways
 from mal_planner.geodesy import GeoFrame
+from mal_planner.performance import DEFAULT_TYPE
 from mal_planner.profiles import TMA, TrafficProfile
 from mal_planner.units import ft_to_nm, nm_to_ft
 
@@ -176,8 +177,10 @@ def _too_close(p: np.ndarray, q: np.ndarray, separation_nm: float, vertical_ft: 
 
 
 def scenario_data(sel: Selection, name: str, profile: TrafficProfile = TMA, glide_path_deg: float | None = None,
-                  vertical_ft: float | None = None) -> dict:
-    """The geodetic scenario (a mapping for YAML) of a selection, with the terminal-area numbers of ``profile``."""
+                  vertical_ft: float | None = None, flyable: bool = False) -> dict:
+    """The geodetic scenario (a mapping for YAML) of a selection, with the terminal-area numbers of ``profile``;
+    ``flyable``: every aircraft flies the airspeed model under the default arrival procedures (of the default
+    type: the sample names no types)."""
     if not sel.kept:
         raise ValueError(f"no arrival on {sel.runway.airport} {sel.runway.name} inside the terminal area at "
                          f"{utc_text(sel.moment_s)}")
@@ -187,7 +190,8 @@ def scenario_data(sel: Selection, name: str, profile: TrafficProfile = TMA, glid
                   "max_landing_spacing_s": profile.max_landing_spacing_s}
     if vertical_ft is not None:
         separation["vertical_ft"] = vertical_ft
-    return {
+    model = {"model": "point_mass_airspeed"} if flyable else {}
+    data = {
         "name": name,
         "description": f"{len(sel.kept)} real arrivals on {sel.runway.airport} {sel.runway.name} at "
                        f"{utc_text(sel.moment_s)} (ADS-B)",
@@ -197,11 +201,15 @@ def scenario_data(sel: Selection, name: str, profile: TrafficProfile = TMA, glid
         "airspace": sel.area.airspace(),
         "aircraft": [{"callsign": a.callsign, "lat": round(a.lat, 7), "lon": round(a.lon, 7),
                       "alt_ft": round(a.alt_ft, 1), "track_deg": round(a.track_deg, 2),
-                      "flight_path_angle_deg": round(a.flight_path_angle_deg, 3), "speed_kt": round(a.speed_kt, 1)}
+                      "flight_path_angle_deg": round(a.flight_path_angle_deg, 3), "speed_kt": round(a.speed_kt, 1),
+                      **model}
                      for a in sel.kept],
         "separation": separation,
         "limits": {"bank_angle_deg": profile.bank_angle_deg, "n_h": list(profile.n_h), "n_v": list(profile.n_v)},
     }
+    if flyable:
+        data["procedures"] = {"aircraft_type": DEFAULT_TYPE}
+    return data
 
 
 def header_lines(sel: Selection, source: str, command: str) -> list[str]:
@@ -213,7 +221,7 @@ def header_lines(sel: Selection, source: str, command: str) -> list[str]:
              "(mal_planner.geo.runways).",
              f"Altitudes: recorded barometric altitude {sel.altitude_offset_ft:+.1f} ft (calibrated on the "
              f"recording's landings: {THRESHOLD_CROSSING_HEIGHT_FT:.0f} ft over the threshold).",
-             "Speeds are ground speeds at the moment (the planner flies constant speed, without wind).",
+             "Speeds are ground speeds at the moment, taken as airspeeds (no wind).",
              "Real landings (s after the moment): " + ", ".join(
                  f"{a.callsign} {a.track.landing.time_s - sel.moment_s:.0f} ({a.track.landing.runway.name})"
                  for a in sel.kept)]

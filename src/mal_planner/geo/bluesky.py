@@ -86,15 +86,17 @@ def create_commands(callsign: str, frame: GeoFrame, state: np.ndarray, tas_kt: f
 def route_commands(callsign: str, frame: GeoFrame, t: np.ndarray, states: np.ndarray, tas_kt: float, dt: float,
                    after: float | None = None) -> list[str]:
     """``ADDWPT`` one sample of a plan (times ``t``, local states) every ``dt`` seconds after ``after`` (default:
-    its start) and its last one, at the true airspeed as CAS, then ``LNAV``/``VNAV ON``."""
+    its start) and its last one, at the true airspeed as CAS (an airspeed-model plan's own airspeed there), then
+    ``LNAV``/``VNAV ON``."""
     if not dt > 0.0:
         raise ValueError(f"waypoint_dt_s must be > 0, got {dt}")
     start = float(t[0]) if after is None else max(float(after), float(t[0]))
     marks = np.arange(start + dt, float(t[-1]), dt)
     picks = sorted({int(np.argmin(np.abs(t - m))) for m in marks} | {len(t) - 1})
     lat, lon, alt = frame.to_geodetic(states[picks, :3])
-    lines = [f"ADDWPT {callsign} {la:.8f} {lo:.8f} {al:.2f} {tas_to_cas_kt(tas_kt, al):.3f}"
-             for la, lo, al in zip(lat.tolist(), lon.tolist(), alt.tolist(), strict=True)]
+    speeds = nm_per_s_to_kt(states[picks, 5]) if states.shape[1] > 5 else np.full(len(picks), tas_kt)
+    lines = [f"ADDWPT {callsign} {la:.8f} {lo:.8f} {al:.2f} {tas_to_cas_kt(float(v), al):.3f}"
+             for la, lo, al, v in zip(lat.tolist(), lon.tolist(), alt.tolist(), speeds.tolist(), strict=True)]
     return lines + [f"LNAV {callsign} ON", f"VNAV {callsign} ON"]
 
 

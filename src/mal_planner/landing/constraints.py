@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
+from functools import cached_property
 
 import casadi as ca
 import numpy as np
@@ -12,6 +13,7 @@ import numpy as np
 from mal_planner.dynamics import bank_limit_residuals
 from mal_planner.landing.margins import Margins
 from mal_planner.landing.profile import floor_height
+from mal_planner.landing.speeds import SpeedRules
 from mal_planner.obstacles import Superquadric
 from mal_planner.scales import Scales
 from mal_planner.scenario import Aircraft, Scenario
@@ -84,9 +86,10 @@ class Intruder:
 
 @dataclass(frozen=True, eq=False)
 class PhaseConstraints:
-    """The functions of one phase with the aircraft ``j = 0, 1, ...`` airborne in it (states stacked by five,
-    controls by two), and the bounds, scales and tolerances of its path rows: the obstacles of each aircraft
-    (:attr:`relevant`), then the separations of the ``pairs`` and of every aircraft from every intruder."""
+    """The functions of one phase with the aircraft ``j = 0, 1, ...`` airborne in it (states and controls stacked,
+    each aircraft's as many as its dynamics model has), and the bounds, scales and tolerances of its path rows: the
+    obstacles of each aircraft (:attr:`relevant`), the floors, the speed rows, then the separations of the ``pairs``
+    and of every aircraft from every intruder."""
 
     aircraft: list[Aircraft]
     relevant: list[list[Superquadric]]
@@ -109,8 +112,9 @@ class PhaseConstraints:
                      for ob in scenario.obstacles]
         # An obstacle matters to an aircraft in this phase only if it overlaps the box the state bounds allow
         # (e.g. the wall, which lies on the approach side of its gate, is irrelevant after the gate).
+        at = state_offsets(aircraft)
         relevant = [
-            [ob for ob in obstacles if _overlaps(ob.bounding_box(), x_lb[5 * j:5 * j + 3], x_ub[5 * j:5 * j + 3])]
+            [ob for ob in obstacles if _overlaps(ob.bounding_box(), x_lb[at[j]:at[j] + 3], x_ub[at[j]:at[j] + 3])]
             for j in range(len(aircraft))
         ]
         # The obstacles with some volume and the separations again at the middle of every chord between two nodes
@@ -131,34 +135,49 @@ class PhaseConstraints:
     def n_bulky(self) -> int:
         return sum(len(b) for b in self.bulky)
 
+    @cached_property
+    def _at(self) -> list[int]:
+        return state_offsets(self.aircraft)
+
+    @cached_property
+    def _u_at(self) -> list[int]:
+        return control_offsets(self.aircraft)
+
+    def state(self, x, j: int):
+        """Aircraft ``j``'s states in the stacked ``x``."""
+        return x[self._at[j]:self._at[j] + self.aircraft[j].dynamics.n_states]
+
+    def control(self, u, j: int):
+        """Aircraft ``j``'s controls in the stacked ``u``."""
+        return u[self._u_at[j]:self._u_at[j] + self.aircraft[j].dynamics.n_controls]
+
+    def position(self, x, j: int):
+        return x[self._at[j]:self._at[j] + 3]
+
     def dynamics(self, x, u, t, p):
-        return ca.vertcat(*[ac.dynamics.rhs(x[5 * j:5 * j + 5], u[2 * j:2 * j + 2])
+        return ca.vertcat(*[ac.dynamics.rhs(self.state(x, j), self.control(u, j))
                             for j, ac in enumerate(self.aircraft)])
 
     def lagrange(self, x, u, t, p):
-        total = 0
-        for j, ac in enumerate(self.aircraft):
-            g_rate, h_rate = ac.dynamics.angle_rates(x[5 * j:5 * j + 5], u[2 * j:2 * j + 2])
-            total += g_rate**2 + h_rate**2
-        return total
+        return sum(ac.dynamics.lagrange(self.state(x, j), self.control(u, j)) for j, ac in enumerate(self.aircraft))
 
     def separations(self, x, t) -> list:
         zone = self.zone
-        out = [zone.measure(x[5 * a:5 * a + 3] - x[5 * b:5 * b + 3]) for a, b in self.pairs]
+        out = [zone.measure(self.position(x, a) - self.position(x, b)) for a, b in self.pairs]
         for j in range(self.n_aircraft):
             for other in self.intruders:  # once it has landed, an intruder no longer counts
-                row = zone.measure(x[5 * j:5 * j + 3] - other.position(t))
+                row = zone.measure(self.position(x, j) - other.position(t))
                 out.append(ca.if_else(t <= other.t_end, row, zone.landed))
         return out
 
     def path(self, x, u, t, p):
         out = []
         for j in range(self.n_aircraft):
-            px, py, pz = x[5 * j], x[5 * j + 1], x[5 * j + 2]
+            px, py, pz = (self.position(x, j)[k] for k in range(3))
             # ln(F)/p = ln of the p-norm: the thesis's constraint divided by p, the same feasible set with
             # p times smaller derivatives (p = 50 for the wall).
             out += [ob.log_pnorm(px, py, pz) / ob.p for ob in self.relevant[j]]
-        return ca.vertcat(*out, *self.floors(x), *self.separations(x, t))
+        return ca.vertcat(*out, *self.floors(x), *self.speeds(x, t), *self.separations(x, t))
 
     def floors(self, x) -> list:
         """Each aircraft's height above the procedures' floor (:mod:`mal_planner.landing.profile`); none without
@@ -166,21 +185,39 @@ class PhaseConstraints:
         runway_z = float(self.scenario.runway_state[2])
         out = []
         for j, ac in enumerate(self.aircraft):
-            floor = floor_height(self.scenario, ac, x[5 * j], x[5 * j + 1], self.margins.airspace_nm)
+            pos = self.position(x, j)
+            floor = floor_height(self.scenario, ac, pos[0], pos[1], self.margins.airspace_nm)
             if floor is not None:
-                out.append(x[5 * j + 2] - runway_z - floor)
+                out.append(pos[2] - runway_z - floor)
         return out
 
     @property
     def n_floors(self) -> int:
         return 0 if self.scenario.procedures is None else self.n_aircraft
 
+    @cached_property
+    def _speed_rules(self) -> list[SpeedRules | None]:
+        return [SpeedRules.of(self.scenario, ac, self.margins.speed_share) for ac in self.aircraft]
+
+    def speeds(self, x, t) -> list:
+        """Each airspeed-model aircraft's calibrated airspeed below its highest and above its lowest
+        (:mod:`mal_planner.landing.speeds`), as shares of its final approach speed."""
+        out = []
+        for j, rules in enumerate(self._speed_rules):
+            if rules is not None:
+                out += rules.rows(self.state(x, j), self.scenario, self.aircraft[j], t)
+        return out
+
+    @property
+    def n_speeds(self) -> int:
+        return sum(0 if r is None else r.n_rows for r in self._speed_rules)
+
     def midpoint(self, x, t, p):
-        return ca.vertcat(*[ob.log_pnorm(x[5 * j], x[5 * j + 1], x[5 * j + 2]) / ob.p
+        return ca.vertcat(*[ob.log_pnorm(*(self.position(x, j)[k] for k in range(3))) / ob.p
                             for j in range(self.n_aircraft) for ob in self.bulky[j]], *self.separations(x, t))
 
     def bank(self, u):  # linear in the controls: enforced at the collocation points and between them
-        return ca.vertcat(*[bank_limit_residuals(u[2 * j], u[2 * j + 1],
+        return ca.vertcat(*[bank_limit_residuals(self.control(u, j)[0], self.control(u, j)[1],
                                                  ac.limits.bank_angle_max - self.margins.bank_rad)
                             for j, ac in enumerate(self.aircraft)])
 
@@ -192,6 +229,8 @@ class PhaseConstraints:
             p_ub += [math.inf] * len(self.relevant[j])
         p_lb += [self.margins.airspace_nm] * self.n_floors
         p_ub += [math.inf] * self.n_floors
+        p_lb += [0.0] * self.n_speeds
+        p_ub += [math.inf] * self.n_speeds
         n_sep = self.n_separations
         p_lb += [self.zone.lower] * n_sep
         p_ub += [math.inf] * n_sep
@@ -206,7 +245,17 @@ class PhaseConstraints:
         margins = self.margins
         return [margins.clearance - math.log1p(-0.5 * margins.obstacle_nm / max(ob.semi_axes)) if ob in self.bulky[j]
                 else math.inf for j in range(self.n_aircraft) for ob in self.relevant[j]] + \
-            [math.inf] * (self.n_floors + self.n_separations)
+            [math.inf] * (self.n_floors + self.n_speeds + self.n_separations)
+
+
+def state_offsets(aircraft: list[Aircraft]) -> list[int]:
+    """Where each aircraft's states start in the stacked state vector."""
+    return np.concatenate([[0], np.cumsum([ac.dynamics.n_states for ac in aircraft])[:-1]]).astype(int).tolist()
+
+
+def control_offsets(aircraft: list[Aircraft]) -> list[int]:
+    """Where each aircraft's controls start in the stacked control vector."""
+    return np.concatenate([[0], np.cumsum([ac.dynamics.n_controls for ac in aircraft])[:-1]]).astype(int).tolist()
 
 
 def _overlaps(box: np.ndarray, lo: list[float], hi: list[float]) -> bool:

@@ -24,7 +24,8 @@ class AircraftGuess:
     callsign: str
     t: np.ndarray
     states: np.ndarray
-    """(K, 5) x, y, z, gamma, heading (heading unwrapped)."""
+    """(K, 5) x, y, z, gamma, heading (heading unwrapped); (K, 6) with the airspeed where cut from an airspeed-model
+    plan."""
     landing_time: float
     gate_time: float | None
     shifted_by: float = 0.0
@@ -44,6 +45,28 @@ class AircraftGuess:
 
     def state_at(self, t: np.ndarray) -> np.ndarray:
         return np.column_stack([np.interp(t, self.t, self.states[:, k]) for k in range(5)])
+
+    def model_states(self, aircraft: Aircraft, t: np.ndarray) -> np.ndarray:
+        """The states of ``aircraft``'s model at ``t``: the path's five, and an airspeed model's airspeed (its first
+        airspeed, at which the path is timed)."""
+        if self.states.shape[1] == aircraft.dynamics.n_states:  # cut from a plan of the same model
+            return np.column_stack([np.interp(t, self.t, self.states[:, k]) for k in range(self.states.shape[1])])
+        path = self.state_at(t)
+        extra = aircraft.state0[5:]
+        return np.column_stack([path, np.tile(extra, (len(path), 1))]) if extra.size else path
+
+    def model_controls(self, aircraft: Aircraft, t: np.ndarray) -> np.ndarray:
+        """The controls of ``aircraft``'s model at ``t`` that fly the path, within its limits."""
+        u_all = self.controls(aircraft.dynamics.gravity, aircraft.speed)
+        u = np.column_stack([np.interp(t, self.t, u_all[:, k]) for k in range(2)])
+        limits = aircraft.limits
+        u[:, 1] = np.clip(u[:, 1], max(limits.n_v[0], 1e-3), limits.n_v[1])
+        cap = np.tan(limits.bank_angle_max) * u[:, 1]
+        u[:, 0] = np.clip(u[:, 0], np.maximum(-cap, limits.n_h[0]), np.minimum(cap, limits.n_h[1]))
+        if "n_x" in aircraft.dynamics.control_names:  # hold the airspeed
+            gamma = np.interp(t, self.t, self.states[:, 3])
+            u = np.column_stack([u, np.clip(np.sin(gamma), *limits.n_x)])
+        return u
 
 
 def _crossing_time(gate: Gate | None, t: np.ndarray, points: np.ndarray) -> float | None:
@@ -85,7 +108,7 @@ def _make_guess(aircraft: Aircraft, t: np.ndarray, states: np.ndarray, gate: Gat
     heading0 = float(aircraft.state0[4])
     first = states[1, 4] + np.remainder(heading0 - states[1, 4] + np.pi, 2 * np.pi) - np.pi
     states[1:, 4] += heading0 - first
-    states[0, 3:] = aircraft.state0[3:]
+    states[0, 3:] = aircraft.state0[3:5]
     dt = float(np.median(np.diff(t))) if len(t) > 1 else 1.0
     states = _smooth_angles(states, max(1, int(round(smooth_s / dt))))
     return AircraftGuess(aircraft.callsign, t, states, landing_time, _crossing_time(gate, t, states[:, :3]))
@@ -155,5 +178,5 @@ def guess_along(aircraft: Aircraft, t: np.ndarray, states: np.ndarray, gate: Gat
     states[:, :3] += np.outer(fade, aircraft.state0[:3] - states[0, :3])
     states[:, 4] = np.unwrap(states[:, 4])
     states[:, 4] += 2 * np.pi * np.round((aircraft.state0[4] - states[0, 4]) / (2 * np.pi))  # a whole turn off
-    states[0, 3:] = aircraft.state0[3:]
+    states[0, 3:] = aircraft.state0[3:5]
     return AircraftGuess(aircraft.callsign, t, states, landing_time, _crossing_time(gate, t, states[:, :3]))

@@ -48,12 +48,16 @@ class SafetyMargins:
     would close). Open loop: none. Plans that are flown: the deviation an aircraft may stray before the service
     replans (:func:`mal_planner.options.plan.tracking_margins`)."""
 
+    speed: float = 0.01
+    """The share of each speed limit the NLP keeps free (the airspeed model: the calibrated airspeed's polynomial
+    between the collocation points, and the verification's finer samples)."""
+
     def in_nm(self, scales: Scales) -> Margins:
         unit = scales.accuracy_nm
         return Margins(self.separation * unit, self.obstacle * unit, self.clearance, self.gate * unit,
                        self.airspace * unit, self.bank_rad, self.load_factor,
                        None if self.airspace_bulge is None else self.airspace_bulge * unit,
-                       (self.obstacle + self.zone) * unit)
+                       (self.obstacle + self.zone) * unit, self.speed)
 
 
 @dataclass(frozen=True)
@@ -70,6 +74,8 @@ class Margins:
     airspace_bulge_nm: float | None = None
     zone_nm: float | None = None
     """The inflation of obstacles with volume (None: ``obstacle_nm``)."""
+    speed_share: float = 0.0
+    """:attr:`SafetyMargins.speed`."""
 
     def inflation_nm(self, bulky: bool) -> float:
         """How much an obstacle's semi-axes are inflated: a thin wall piece by ``obstacle_nm``, one with volume by

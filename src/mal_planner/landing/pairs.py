@@ -87,20 +87,21 @@ def screen_pairs(layout: PhaseLayout, guesses: Sequence[AircraftGuess], scales: 
 
 
 def close_unconstrained(layout: PhaseLayout, phase_states: Sequence[tuple[np.ndarray, np.ndarray]],
-                        constrained: PhasePairs, threshold_nm: float) -> PhasePairs:
+                        constrained: PhasePairs, threshold_nm: float, widths: Sequence[int]) -> PhasePairs:
     """Per phase, the unconstrained pairs that come closer than ``threshold_nm`` in a solution.
 
-    ``phase_states`` holds, per phase, sample times and the stacked states (K, 5 * airborne) there.
+    ``phase_states`` holds, per phase, sample times and the stacked states (K, sum of the airborne aircraft's state
+    counts) there; ``widths`` are the aircraft's state counts (landing order).
     """
     out: PhasePairs = []
     for k, (_, x) in enumerate(phase_states):
         who = layout.airborne(k)
+        at = dict(zip(who, np.concatenate([[0], np.cumsum([widths[i] for i in who])[:-1]]).astype(int), strict=True))
         found = set()
         for a, b in itertools.combinations(who, 2):
             if (a, b) in constrained[k]:
                 continue
-            ja, jb = who.index(a), who.index(b)
-            d = np.linalg.norm(x[:, 5 * ja:5 * ja + 3] - x[:, 5 * jb:5 * jb + 3], axis=1)
+            d = np.linalg.norm(x[:, at[a]:at[a] + 3] - x[:, at[b]:at[b] + 3], axis=1)
             if d.min() < threshold_nm:
                 found.add((a, b))
         out.append(found)

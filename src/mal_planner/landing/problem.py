@@ -20,15 +20,16 @@ from dataclasses import dataclass, field
 import casadi as ca
 import numpy as np
 
-from mal_planner.dynamics import STATE_NAMES
-from mal_planner.landing.constraints import Intruder, PhaseConstraints
+from mal_planner.landing.constraints import Intruder, PhaseConstraints, state_offsets
 from mal_planner.landing.guess import AircraftGuess
 from mal_planner.landing.layout import Event, PhaseLayout
 from mal_planner.landing.margins import Margins, SafetyMargins
 from mal_planner.landing.pairs import PhasePairs, all_pairs
 from mal_planner.landing.profile import gamma_bounds
+from mal_planner.landing.speeds import landing_airspeed
 from mal_planner.obstacles import Gate
 from mal_planner.ocp import Phase, PhaseGuess, PhaseMesh, Problem
+from mal_planner.performance import performance_of
 from mal_planner.scales import Scales
 from mal_planner.scenario import Aircraft, Scenario
 from mal_planner.sequencing.schedule import planned_spacing
@@ -97,15 +98,14 @@ def build_landing_problem(scenario: Scenario, layout: PhaseLayout, guesses: list
                    scales, tuple(intruders))
     pairs = pairs if pairs is not None else all_pairs(layout)
     phases, members = _phases(ctx, mesh, segment_turn_times, pairs)
-    n_states = len(STATE_NAMES)
-    events = _Events(layout, members, fixed_landing_times, earliest_landing)
+    events = _Events(layout, members, fixed_landing_times, earliest_landing, tuple(aircraft))
     lb, ub = events.bounds(scenario, aircraft)
-    length, seconds = scales.length_nm, scales.time_s
-    state_scale = [length, length, length, 1.0, 1.0]
-    problem = Problem(phases=phases, n_params=n * n_states + n, mayer=events.mayer, events=events.constraints,
+    seconds = scales.time_s
+    state_scale = [v for ac in aircraft for v in _state_scale(ac, scales)]
+    problem = Problem(phases=phases, n_params=len(state_scale) + n, mayer=events.mayer, events=events.constraints,
                       events_lb=lb, events_ub=ub, objective_scale=seconds,
-                      events_scale=state_scale * n + [seconds] * (len(lb) - n * n_states))
-    _link_phases(problem, layout, phases, members)
+                      events_scale=state_scale + [seconds] * (len(lb) - len(state_scale)))
+    _link_phases(problem, layout, phases, members, aircraft)
     return LandingProblem(problem, layout, n, fixed_landing_times, tuple(float(g.states[0, 4]) for g in guesses))
 
 
@@ -135,19 +135,24 @@ class _Events:
     """Per phase, the aircraft airborne in it (landing-order indices)."""
     fixed_landing_times: bool
     earliest_landing: float | None
+    aircraft: tuple[Aircraft, ...]
+    """In landing order."""
 
     def constraints(self, E, p):
-        layout, n, n_states = self.layout, len(self.layout.callsigns), len(STATE_NAMES)
+        layout, n = self.layout, len(self.layout.callsigns)
         out = []
         # Initial states of every aircraft (all are airborne in phase 0).
+        in_params = state_offsets(list(self.aircraft))
+        in_phase = state_offsets([self.aircraft[i] for i in self.members[0]])
         for i in range(n):
-            j = self.members[0].index(i)
-            out.append(E[0].x0[j * n_states:(j + 1) * n_states] - p[i * n_states:(i + 1) * n_states])
+            j, width = self.members[0].index(i), self.aircraft[i].dynamics.n_states
+            out.append(E[0].x0[in_phase[j]:in_phase[j] + width] - p[in_params[i]:in_params[i] + width])
+        n_states = sum(ac.dynamics.n_states for ac in self.aircraft)
         # Landing times.
         for i in range(n):
             t_land = E[layout.event_index("land", i)].tf
             if self.fixed_landing_times:
-                out.append(t_land - p[n * n_states + i])
+                out.append(t_land - p[n_states + i])
         if not self.fixed_landing_times:
             for i in range(n - 1):
                 out.append(E[layout.event_index("land", i + 1)].tf - E[layout.event_index("land", i)].tf)
@@ -160,7 +165,7 @@ class _Events:
         at least the spacing it needs (wake turbulence included), the first no earlier than ``earliest_landing``."""
         n = len(self.layout.callsigns)
         fixed = self.fixed_landing_times
-        n_eq = n * len(STATE_NAMES) + (n if fixed else 0)
+        n_eq = sum(ac.dynamics.n_states for ac in aircraft) + (n if fixed else 0)
         spacing = [] if fixed else [planned_spacing(scenario, aircraft[i], aircraft[i + 1]) for i in range(n - 1)]
         if not fixed and self.earliest_landing is not None:
             spacing.append(self.earliest_landing)
@@ -174,13 +179,14 @@ class _Events:
         return sum(E[layout.event_index("land", i)].tf for i in range(n))
 
 
-def _link_phases(problem: Problem, layout: PhaseLayout, phases: list[Phase], members: list[list[int]]) -> None:
+def _link_phases(problem: Problem, layout: PhaseLayout, phases: list[Phase], members: list[list[int]],
+                 aircraft: list[Aircraft]) -> None:
     """Every aircraft airborne in the next phase continues its states (and the time) across the boundary."""
     for k in range(layout.n_phases - 1):
         linked = []
         for i in members[k + 1]:
             cs = layout.callsigns[i]
-            linked += [f"{cs}.{s}" for s in STATE_NAMES]
+            linked += [f"{cs}.{s}" for s in aircraft[i].dynamics.state_names]
         problem.link(phases[k].name, phases[k + 1].name, linked, time=True)
 
 
@@ -247,7 +253,8 @@ def _phase(ctx: _Context, k: int, who: list[int], mesh: PhaseMesh, guess_span: t
         path_ub=p_ub,
         path_overshoot_tol=cons.path_overshoot_tol(),
         state_overshoot_tol=None if margins.airspace_bulge_nm is None else
-        [v for _ in who for v in (*[margins.airspace_bulge_nm] * 3, math.inf, math.inf)],
+        [v for i in who for v in (*[margins.airspace_bulge_nm] * 3, *[math.inf] * (ctx.aircraft[i].dynamics.n_states
+                                                                                   - 3))],
         state_lb=bounds.x_lb,
         state_ub=bounds.x_ub,
         final_state_lb=bounds.xf_lb,
@@ -255,10 +262,10 @@ def _phase(ctx: _Context, k: int, who: list[int], mesh: PhaseMesh, guess_span: t
         control_lb=bounds.u_lb,
         control_ub=bounds.u_ub,
         # The initial states are given (radar): they may lie on the airspace boundary, inside the margin.
-        initial_state_lb=[v for _ in who for v in (*scenario.airspace[:, 0], -GAMMA_BOUND, -HEADING_BOUND)]
-        if k == 0 else None,
-        initial_state_ub=[v for _ in who for v in (*scenario.airspace[:, 1], GAMMA_BOUND, HEADING_BOUND)]
-        if k == 0 else None,
+        initial_state_lb=[v for i in who for v in (*scenario.airspace[:, 0], -GAMMA_BOUND, -HEADING_BOUND,
+                                                   *_speed_box(ctx.aircraft[i])[:1])] if k == 0 else None,
+        initial_state_ub=[v for i in who for v in (*scenario.airspace[:, 1], GAMMA_BOUND, HEADING_BOUND,
+                                                   *_speed_box(ctx.aircraft[i])[1:])] if k == 0 else None,
         t0_bounds=(0.0, 0.0) if k == 0 else (0.0, ctx.horizon),
         tf_bounds=(0.0, ctx.horizon),
         min_duration=scales.seconds(MIN_DURATION_TURN_TIMES),
@@ -270,7 +277,7 @@ def _phase(ctx: _Context, k: int, who: list[int], mesh: PhaseMesh, guess_span: t
         midpoint_path=cons.midpoint if n_bulky + n_sep else None,
         midpoint_path_lb=[margins.clearance] * n_bulky + [cons.zone.lower] * n_sep,
         midpoint_path_scale=[1.0] * n_bulky + [cons.zone.scale] * n_sep,
-        state_scale=[v for _ in who for v in (scales.length_nm, scales.length_nm, scales.length_nm, 1.0, 1.0)],
+        state_scale=[v for i in who for v in _state_scale(ctx.aircraft[i], scales)],
         time_scale=scales.time_s,
         path_scale=p_scale,
     )
@@ -299,11 +306,11 @@ def _phase_bounds(ctx: _Context, k: int, who: list[int], guess_span: tuple[float
     out = _PhaseBounds()
     for i in who:
         ac, cs = ctx.aircraft[i], layout.callsigns[i]
-        out.states += [f"{cs}.{s}" for s in STATE_NAMES]
-        out.controls += [f"{cs}.n_h", f"{cs}.n_v"]
+        out.states += [f"{cs}.{s}" for s in ac.dynamics.state_names]
+        out.controls += [f"{cs}.{c}" for c in ac.dynamics.control_names]
         gamma_lo, gamma_hi = gamma_bounds(ctx.scenario, ac, GAMMA_BOUND)
-        lo = [*space_lo, gamma_lo, -HEADING_BOUND]
-        hi = [*space_hi, gamma_hi, HEADING_BOUND]
+        lo = [*space_lo, gamma_lo, -HEADING_BOUND, *_speed_box(ac)[:1]]
+        hi = [*space_hi, gamma_hi, HEADING_BOUND, *_speed_box(ac)[1:]]
         if gate is not None:  # keep each aircraft on its side of the gate plane in this phase
             if layout.approaching(k, i):
                 (lo if gate.direction < 0 else hi)[gate.axis] = gate.position
@@ -315,9 +322,29 @@ def _phase_bounds(ctx: _Context, k: int, who: list[int], guess_span: tuple[float
         flo, fhi = _end_bounds(ctx, layout.events[k], i, lo, hi, (space_lo, space_hi), guess_heading)
         out.xf_lb += flo
         out.xf_ub += fhi
-        out.u_lb += [ac.limits.n_h[0] + margins.load_factor, ac.limits.n_v[0] + margins.load_factor]
-        out.u_ub += [ac.limits.n_h[1] - margins.load_factor, ac.limits.n_v[1] - margins.load_factor]
+        pushes = [ac.limits.n_h, ac.limits.n_v, ac.limits.n_x][:ac.dynamics.n_controls]
+        out.u_lb += [lo + margins.load_factor for lo, _ in pushes]
+        out.u_ub += [hi - margins.load_factor for _, hi in pushes]
     return out
+
+
+SPEED_BOX = (0.5, 2.0)
+"""An airspeed state is boxed between these multiples of the slower of its first airspeed and its type's slowest final
+approach speed, and of the faster of its first airspeed and its type's VMO (a box for the solver only: the speed rows
+of :mod:`mal_planner.landing.speeds` keep the envelope)."""
+
+
+def _speed_box(ac: Aircraft) -> tuple[float, ...]:
+    """(lower, upper) of an airspeed state (nm/s); () for a constant-speed model."""
+    if "airspeed" not in ac.dynamics.state_names:
+        return ()
+    perf = performance_of(ac.type_code)
+    return SPEED_BOX[0] * min(ac.speed, perf.final_approach_cas.low), SPEED_BOX[1] * max(ac.speed, perf.vmo)
+
+
+def _state_scale(ac: Aircraft, scales: Scales) -> list[float]:
+    """Positions in the scenario's length scale, angles in rad, an airspeed in its first airspeed."""
+    return [scales.length_nm] * 3 + [1.0, 1.0] + [ac.speed] * (ac.dynamics.n_states - 5)
 
 
 def _end_bounds(ctx: _Context, end: Event, i: int, lo: list[float], hi: list[float],
@@ -338,6 +365,8 @@ def _end_bounds(ctx: _Context, end: Event, i: int, lo: list[float], hi: list[flo
         flo[:3] = fhi[:3] = list(np.clip(rw[:3], *space))  # the threshold, inside the margin
         flo[3] = fhi[3] = float(rw[3])
         flo[4] = fhi[4] = _wrap_near(ctx.scenario.runway_heading(ac), guess_heading)
+        if len(fhi) > 5:  # the airspeed model lands within its type's final approach speeds
+            fhi[5] = min(fhi[5], landing_airspeed(ctx.scenario, ac, margins.speed_share))
     return flo, fhi
 
 
@@ -345,8 +374,8 @@ def phase_guess(who: list[int], aircraft: list[Aircraft], guesses: list[Aircraft
                 samples: int = 25) -> PhaseGuess:
     """The stacked guess of the aircraft ``who`` over the phase's guessed time span."""
     t = np.linspace(span[0], span[1], samples)
-    x = np.hstack([guesses[i].state_at(t) for i in who])
-    u = np.hstack([_clip_controls(guesses[i], aircraft[i], t) for i in who])
+    x = np.hstack([guesses[i].model_states(aircraft[i], t) for i in who])
+    u = np.hstack([guesses[i].model_controls(aircraft[i], t) for i in who])
     return PhaseGuess(t=t, x=x, u=u)
 
 
@@ -356,12 +385,3 @@ def phase_guesses(scenario: Scenario, layout: PhaseLayout, guesses: list[Aircraf
     times = [0.0] + [ev.time_guess for ev in layout.events]
     return [phase_guess(layout.airborne(k), aircraft, guesses, (times[k], times[k + 1]))
             for k in range(layout.n_phases)]
-
-
-def _clip_controls(guess: AircraftGuess, ac: Aircraft, t: np.ndarray) -> np.ndarray:
-    u_all = guess.controls(ac.dynamics.gravity, ac.speed)
-    u = np.column_stack([np.interp(t, guess.t, u_all[:, k]) for k in range(2)])
-    u[:, 1] = np.clip(u[:, 1], max(ac.limits.n_v[0], 1e-3), ac.limits.n_v[1])
-    cap = np.tan(ac.limits.bank_angle_max) * u[:, 1]
-    u[:, 0] = np.clip(u[:, 0], np.maximum(-cap, ac.limits.n_h[0]), np.minimum(cap, ac.limits.n_h[1]))
-    return u

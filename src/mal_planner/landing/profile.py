@@ -37,10 +37,13 @@ threshold itself (where the final state is), and never shorter than d, so the fl
 
 def gamma_bounds(scenario: Scenario, aircraft: Aircraft, default: float) -> tuple[float, float]:
     """The flight-path angle bounds of ``aircraft`` in the NLP (rad): +-``default`` without procedures; else the
-    steepest descent the rules and the type allow (less the reserve) and level flight."""
+    steepest descent the rules and the type allow (less the reserve) and level flight (the airspeed model:
+    -``default`` and level flight, and :mod:`mal_planner.landing.speeds` bounds the descent rate)."""
     limit = scenario.descent_rate_limit(aircraft)
     if limit is None:
         return -default, default
+    if "airspeed" in aircraft.dynamics.state_names:  # the rate depends on the airspeed: a row of its own
+        return -default, 0.0
     return -math.asin(min(1.0, limit * (1.0 - RATE_RESERVE) / aircraft.speed)), 0.0
 
 

@@ -19,11 +19,13 @@ def round_step(step: float) -> float:
 
 
 def within_limits(u: np.ndarray, limits) -> np.ndarray:
-    """Controls (n_h, n_v) rows moved into the load-factor and bank limits (n_v first, then n_h within
+    """Controls (n_h, n_v[, n_x]) rows moved into the load-factor and bank limits (n_v first, then n_h within
     +-tan(mu) n_v): the interpolant of a solution that rides a limit can pass it by 1e-4 between the points
     where the NLP holds it (campaign: n_v 1.3000x against 1.3, and a verification round to refine it)."""
     out = np.array(u, float, copy=True)
     out[:, 1] = np.clip(out[:, 1], *limits.n_v)
+    if out.shape[1] > 2:  # the airspeed model's n_x
+        out[:, 2] = np.clip(out[:, 2], *limits.n_x)
     cap = math.tan(limits.bank_angle_max) * out[:, 1]
     out[:, 0] = np.clip(out[:, 0], np.maximum(-cap, limits.n_h[0]), np.minimum(cap, limits.n_h[1]))
     return out

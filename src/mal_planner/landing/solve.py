@@ -9,7 +9,7 @@ from collections.abc import Sequence
 import numpy as np
 
 from mal_planner.landing.base import LandingOptions, LandingResult
-from mal_planner.landing.constraints import Intruder
+from mal_planner.landing.constraints import Intruder, control_offsets, state_offsets
 from mal_planner.landing.guess import AircraftGuess, guess_from_initial_plan, straight_line_guess
 from mal_planner.landing.layout import PhaseLayout, plan_layout
 from mal_planner.landing.meshes import REFINE_PAD_TURN_TIMES, meshes_after, split_segments
@@ -112,7 +112,9 @@ class LandingOptimizer:
                 t = np.linspace(phase.t0, phase.tf, max(20, int(np.ceil((phase.tf - phase.t0) / dt)) + 1))
                 samples.append((t, phase.interpolate(t)[0]))
             close = close_unconstrained(self.layout, samples, self.pairs,
-                                        scenario.separation_nm + screen.recheck_nm(self.scales))
+                                        scenario.separation_nm + screen.recheck_nm(self.scales),
+                                        [scenario.aircraft_by_callsign(cs).dynamics.n_states
+                                         for cs in self.layout.callsigns])
             if not count(close):
                 break
             rounds += 1
@@ -196,22 +198,27 @@ class LandingOptimizer:
         trajectories: list[Trajectory] = []
         gate_times: dict[str, float | None] = {}
         landing_times: dict[str, float] = {}
+        everyone = [self.scenario.aircraft_by_callsign(cs) for cs in lay.callsigns]
         for i, cs in enumerate(lay.callsigns):
             ts, xs, us, ph = [], [], [], []
+            model = everyone[i].dynamics
             for k, phase in enumerate(sol.phases):
                 if i not in lay.airborne(k):
                     continue
+                who = [everyone[m] for m in lay.airborne(k)]
                 j = lay.airborne(k).index(i)
+                xa, ua = state_offsets(who)[j], control_offsets(who)[j]
                 # Dense samples of the solution's own interpolants (states and controls), plus the nodes.
                 # A phase boundary appears twice: the end of one phase with the control that applied up
                 # to it, then the start of the next with the control that applies from it.
                 # The global grid k * output_dt inside the phase, its ends and the nodes.
-                t = published_times(phase, slice(2 * j, 2 * j + 2), self.output_dt, self.options.control_tol)
+                controls = slice(ua, ua + model.n_controls)
+                t = published_times(phase, controls, self.output_dt, self.options.control_tol)
                 x_all, u_all = phase.interpolate(t)
-                x = x_all[:, 5 * j:5 * j + 5]
+                x = x_all[:, xa:xa + model.n_states]
                 # The solution's control interpolant, kept within the aircraft's limits where it overshoots them
                 # between the points the NLP constrains (the verification checks what is published).
-                u = within_limits(u_all[:, 2 * j:2 * j + 2], self.scenario.aircraft_by_callsign(cs).limits)
+                u = within_limits(u_all[:, controls], everyone[i].limits)
                 ts.append(t)
                 xs.append(x)
                 us.append(u)

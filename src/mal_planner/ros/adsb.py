@@ -84,6 +84,9 @@ def main(argv: list[str] | None = None) -> int:
     p.add_argument("--bag-seconds", type=float, default=30.0, help="radar before the moment (default 30 s)")
     p.add_argument("--bag-rate", type=float, default=1.0, help="radar rate (default 1 Hz)")
     p.add_argument("--tracks", type=Path, default=None, help="also write the real tracks to the landing (CSV)")
+    p.add_argument("--flyable", action="store_true",
+                   help="plan the aircraft as airliners: the airspeed model (model: point_mass_airspeed) under the "
+                        "default arrival procedures (procedures:, type A320); mal-plan plans it, the service not yet")
     p.add_argument("--force", action="store_true", help="replace existing output files")
     args = p.parse_args(argv)
     handler = logging.StreamHandler()
@@ -131,7 +134,7 @@ def _convert(args: argparse.Namespace, moment: float, rw: Runway, command: str) 
                          f"{utc_text(t_max)})")
     sel = select_arrivals(tracks, rw, moment, Area.square(args.area_nm, args.ceiling_nm), TMA, args.arrivals,
                           args.altitude_offset_ft, args.vertical_ft)
-    data = scenario_data(sel, args.name or args.out.stem, TMA, vertical_ft=args.vertical_ft)
+    data = scenario_data(sel, args.name or args.out.stem, TMA, vertical_ft=args.vertical_ft, flyable=args.flyable)
     source = str(args.data) if args.data else "traffic.data.samples.quickstart"
     for out in (args.out, args.bag, args.tracks):
         if out is not None and args.force and out.is_file():

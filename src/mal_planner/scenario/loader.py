@@ -25,7 +25,7 @@ from pydantic import ValidationError
 from mal_planner.dynamics import make_dynamics
 from mal_planner.geodesy import GeoFrame
 from mal_planner.obstacles import Gate, Superquadric
-from mal_planner.performance import UnknownAircraftType, known_type
+from mal_planner.performance import UnknownAircraftType, known_type, performance_of
 from mal_planner.scenario.model import Aircraft, Scenario, ScenarioError
 from mal_planner.scenario.obstacle_schema import WallConfig
 from mal_planner.scenario.quantities import field_unit
@@ -127,16 +127,19 @@ def build_scenario(config: ScenarioConfig, source: str = "<scenario>") -> Scenar
     wind = (0.0, 0.0) if config.wind is None else config.wind.velocity(frame)
     aircraft = []
     for i, ac in enumerate(config.aircraft):
-        state0 = np.array([*ac.position, np.radians(ac.flight_path_angle_deg), np.radians(ac.heading_deg)])
         dyn = make_dynamics(ac.model, ac.speed, gravity=config.gravity, wind_x=wind[0], wind_y=wind[1])
+        state0 = dyn.initial_state(ac.position, np.radians(ac.flight_path_angle_deg), np.radians(ac.heading_deg))
         if math.hypot(*wind) >= ac.speed * math.cos(state0[3]):
             raise ScenarioError(source, "wind.speed_kt", f"{config.wind.speed_kt:g} kt is not below aircraft[{i}] "
                                 f"{ac.callsign}'s airspeed: it could not make way against it")
         limits = ac.limits.to_limits() if ac.limits else (
             config.limits.to_limits() if "limits" in config.model_fields_set else dyn.default_limits)
+        type_code = _known_type(ac.aircraft_type, source, f"aircraft[{i}].aircraft_type")
+        if "n_x" in dyn.control_names:  # the airspeed model: its thrust and drag from the type's performance
+            thrust = performance_of(type_code or (config.procedures.aircraft_type if config.procedures else None))
+            limits = replace(limits, n_x=(thrust.longitudinal.low, thrust.longitudinal.high))
         aircraft.append(Aircraft(ac.callsign, state0, dyn, limits, ac.wake_category, ac.landing_time,
-                                 ac.target_time, ac.latest_time, ac.cost_early, ac.cost_late,
-                                 _known_type(ac.aircraft_type, source, f"aircraft[{i}].aircraft_type")))
+                                 ac.target_time, ac.latest_time, ac.cost_early, ac.cost_late, type_code))
         where, what = f"aircraft[{i}].position", str(list(ac.position))
         if isinstance(geo := given.aircraft[i], GeoAircraftConfig):
             where = f"aircraft[{i}].lat/lon/alt_ft"

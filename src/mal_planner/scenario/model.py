@@ -128,13 +128,15 @@ class Scenario:
         """The state heading of ``aircraft`` at touchdown: the runway's course as its ground track (crabbed)."""
         return aircraft.heading_for_track(float(self.runway_state[4]), float(self.runway_state[3]))
 
-    def final_ground_speed(self, aircraft: Aircraft) -> float:
-        """Ground speed (nm/s) of ``aircraft`` on the final approach (the runway's course and flight-path angle):
-        its airspeed in still air, else the wind triangle's (what a distance on final takes in time)."""
-        if not aircraft.dynamics.has_wind:
-            return aircraft.speed
+    def final_ground_speed(self, aircraft: Aircraft, airspeed: float | None = None) -> float:
+        """Ground speed (nm/s) of ``aircraft`` on the final approach (the runway's course and flight-path angle) at
+        ``airspeed`` (None: its model's): the airspeed in still air, else the wind triangle's (what a distance on
+        final takes in time)."""
+        dynamics = aircraft.dynamics if airspeed is None else replace(aircraft.dynamics, speed=airspeed)
+        if not dynamics.has_wind:
+            return dynamics.speed
         gamma, track = float(self.runway_state[3]), float(self.runway_state[4])
-        return math.hypot(float(aircraft.dynamics.ground_speed_along(track, gamma)), aircraft.speed * math.sin(gamma))
+        return math.hypot(float(dynamics.ground_speed_along(track, gamma)), dynamics.speed * math.sin(gamma))
 
     def with_wind(self, wind: tuple[float, float]) -> Scenario:
         """This scenario in another constant wind (w_x, w_y) [nm/s]: every aircraft's model carries it. The caller

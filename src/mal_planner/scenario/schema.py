@@ -88,7 +88,7 @@ class AircraftConfig(_AircraftCommon):
     """Initial x, y, z in nm."""
     heading_deg: float = quantity("deg", ge=-360.0, le=360.0)
     speed: float = quantity("nm/s", gt=0.0, le=1.0)
-    """Constant airspeed in nm/s."""
+    """Airspeed in nm/s: constant (the thesis's ``point_mass``), or the first (``point_mass_airspeed``)."""
 
 
 class GeoAircraftConfig(_AircraftCommon):

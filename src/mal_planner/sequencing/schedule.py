@@ -25,7 +25,7 @@ from mal_planner.errors import InfeasibleRequest
 from mal_planner.scales import Scales
 from mal_planner.scenario import Aircraft, Scenario
 from mal_planner.sequencing import SequencingInfeasible, SequencingProblem, sequence
-from mal_planner.sequencing.timing import reachable_lower_bound
+from mal_planner.sequencing.timing import fastest_dynamics, reachable_lower_bound
 from mal_planner.wake import wake_spacing_s
 
 log = logging.getLogger("mal_planner.sequencing")
@@ -152,7 +152,8 @@ def vertical_escape_problem(scenario: Scenario, ac) -> str | None:
     if gamma == 0.0:
         return None
     n_v = ac.limits.n_v[0] if gamma > 0 else ac.limits.n_v[1]
-    control = np.array([0.0, n_v])
+    control = ac.dynamics.level_flight_control(0.0)
+    control[1] = n_v
     x = ac.state0.astype(float).copy()
     extreme = x[2]
     for _ in range(int(horizon_s / step_s)):
@@ -290,6 +291,11 @@ def straight_in_time(aircraft: Aircraft, runway: np.ndarray) -> float:
     return MIN_TIME_FACTOR * float(aircraft.dynamics.air_distance(runway - aircraft.position)) / aircraft.speed
 
 
+def _straight_in_bound(scenario: Scenario, aircraft: Aircraft) -> float:
+    """:func:`straight_in_time` at the fastest airspeed ``aircraft`` may fly (a bound that proves)."""
+    return straight_in_time(replace(aircraft, dynamics=fastest_dynamics(scenario, aircraft)), scenario.runway_state[:3])
+
+
 def slot_after_fixed(scenario: Scenario, aircraft: list[Aircraft]) -> list[Aircraft]:
     """Keep the fixed landing times; aircraft without one (e.g. radar tracks the scenario does not know) land after
     them in order of their straight-in times, each its pair's landing spacing (wake included) behind the one before
@@ -300,7 +306,7 @@ def slot_after_fixed(scenario: Scenario, aircraft: list[Aircraft]) -> list[Aircr
     if not fixed:
         return aircraft
     free_all = [replace(a, landing_time=None) for a in aircraft]
-    if not all(a.landing_time is None or a.landing_time >= straight_in_time(a, runway) for a in aircraft):
+    if not all(a.landing_time is None or a.landing_time >= _straight_in_bound(scenario, a) for a in aircraft):
         return free_all
     leader = max(fixed, key=lambda a: a.landing_time)  # type: ignore[arg-type, return-value]
     order = sorted((a for a in aircraft if a.landing_time is None), key=lambda a: straight_in_time(a, runway))

@@ -22,10 +22,13 @@ from __future__ import annotations
 
 import math
 from collections.abc import Mapping
+from dataclasses import replace
 
 import numpy as np
 
+from mal_planner.dynamics import DynamicsModel
 from mal_planner.obstacles import Gate
+from mal_planner.performance import performance_of, tas_of_cas
 from mal_planner.scales import level_turn_radius
 from mal_planner.scenario import Aircraft, Scenario
 
@@ -70,21 +73,79 @@ def _nearest_hole_point(gate: Gate, point: np.ndarray) -> np.ndarray:
     return out
 
 
+SCHEDULE_SAMPLES = 200
+"""Samples of the way to go over which :func:`flight_time` integrates an airspeed-model aircraft's speed."""
+
+
+def flight_time(scenario: Scenario, aircraft: Aircraft, length_nm: float) -> float:
+    """Seconds ``aircraft`` takes to fly ``length_nm`` to the threshold in still air: at its constant airspeed; an
+    airspeed-model aircraft with arrival procedures at a nominal speed schedule (as an arrival manager's speed
+    profile: the sequencer then asks for times the plan can keep): its first airspeed slowed down at a share of its
+    idle deceleration to the final speed at the final distance, v(d)^2 = v_f^2 + 2 a (d - D), then evenly to its
+    type's usual final approach speed over the threshold."""
+    rules = scenario.procedures
+    if "airspeed" not in aircraft.dynamics.state_names or rules is None or length_nm <= 0.0:
+        return length_nm / aircraft.speed
+    landing = performance_of(scenario.type_of(aircraft)).final_approach_cas.default
+    final = max(min(rules.final_speed, aircraft.speed), landing)
+    slowing = NOMINAL_SLOWING_SHARE * -aircraft.limits.n_x[0] * aircraft.dynamics.gravity
+    d = np.linspace(0.0, length_nm, SCHEDULE_SAMPLES)
+    beyond = np.sqrt(final**2 + 2.0 * slowing * np.maximum(d - rules.final_distance_nm, 0.0))
+    inside = np.sqrt(landing**2 + (final**2 - landing**2) * np.minimum(d / rules.final_distance_nm, 1.0))
+    v = np.minimum(aircraft.speed, np.where(d > rules.final_distance_nm, beyond, inside))
+    return float(np.trapezoid(1.0 / v, d))
+
+
+NOMINAL_SLOWING_SHARE = 0.5
+"""The share of an aircraft's idle deceleration in level flight its nominal speed schedule slows down at."""
+
+
+def fastest_dynamics(scenario: Scenario, aircraft: Aircraft) -> DynamicsModel:
+    """``aircraft``'s model at the fastest airspeed it may fly (for bounds that prove): its constant one, or an
+    airspeed-model aircraft's first airspeed or its type's VMO as a true airspeed where it is, if faster."""
+    dyn = aircraft.dynamics
+    if "airspeed" not in dyn.state_names:
+        return dyn
+    vmo = float(tas_of_cas(performance_of(scenario.type_of(aircraft)).vmo,
+                           max(float(aircraft.position[2]) + scenario.elevation_nm, 0.0)))
+    return replace(dyn, speed=max(aircraft.speed, vmo))
+
+
 def descent_time(scenario: Scenario, aircraft: Aircraft) -> float:
     """The shortest time (s) ``aircraft`` takes down to the threshold at the steepest descent the scenario's
-    procedures and its type allow (0 without procedures)."""
+    procedures and its type allow (0 without procedures), and for the airspeed model at least
+    :func:`energy_time` at its fastest airspeed."""
     limit = scenario.descent_rate_limit(aircraft)
     height = float(aircraft.position[2] - scenario.runway_state[2])
-    return 0.0 if limit is None or height <= 0.0 else height / limit
+    rate = 0.0 if limit is None or height <= 0.0 else height / limit
+    return max(rate, energy_time(scenario, aircraft, fastest_dynamics(scenario, aircraft).speed))
+
+
+def energy_time(scenario: Scenario, aircraft: Aircraft, airspeed: float) -> float:
+    """Seconds an airspeed-model aircraft takes at least to lose the energy between its start and the threshold
+    at its fastest final approach speed, flying at ``airspeed`` (0 for the constant-speed models).
+
+    The energy height h + V^2 / 2g changes at V n_x (the point mass's energy equation, from V' = g (n_x - sin
+    gamma)), so at idle thrust it falls by V |n_x_low| at most: an aircraft high and fast can land only that late
+    (7,800 ft and 250 kt above the threshold of an A320: about 10 minutes; a real one at Paris-CDG took 644 s).
+    """
+    dyn = aircraft.dynamics
+    if "airspeed" not in dyn.state_names or aircraft.limits.n_x[0] >= 0.0:
+        return 0.0
+    landing = float(tas_of_cas(performance_of(scenario.type_of(aircraft)).final_approach_cas.high,
+                               float(scenario.runway_state[2]) + scenario.elevation_nm))
+    first = float(aircraft.position[2]) + aircraft.speed**2 / (2.0 * dyn.gravity)
+    last = float(scenario.runway_state[2]) + landing**2 / (2.0 * dyn.gravity)
+    return max(first - last, 0.0) / (airspeed * -aircraft.limits.n_x[0])
 
 
 def reachable_lower_bound(scenario: Scenario, aircraft: Aircraft) -> float:
     """A landing time (s) no trajectory can beat: straight lines via the hole at full speed (in a wind: see the
     module docstring)."""
     start, goal = aircraft.position, scenario.runway_state[:3]
-    dyn = aircraft.dynamics
+    dyn = fastest_dynamics(scenario, aircraft)
     # Straight to the runway at the best crab: the air path covers (goal - start) - w t, at most V t long.
-    direct = float(dyn.air_distance(goal - start)) / aircraft.speed
+    direct = float(dyn.air_distance(goal - start)) / dyn.speed
     direct = max(direct, descent_time(scenario, aircraft))
     gate = scenario.gates[0] if scenario.gates else None
     if not _ahead_of(gate, aircraft):
@@ -140,7 +201,17 @@ def earliest_landing_time(scenario: Scenario, aircraft: Aircraft, detour_nm: flo
     length, _, route = _dubins_route(scenario, aircraft)
     climb = abs(float(scenario.runway_state[2] - aircraft.position[2]))
     length = math.hypot(length + max(detour_nm, 0.0), climb)
-    return max(length / aircraft.speed * wind_factor(aircraft, route), reachable_lower_bound(scenario, aircraft))
+    return max(flight_time(scenario, aircraft, length) * wind_factor(aircraft, route),
+               energy_time(scenario, aircraft, nominal_airspeed(scenario, aircraft)),
+               reachable_lower_bound(scenario, aircraft))
+
+
+def nominal_airspeed(scenario: Scenario, aircraft: Aircraft) -> float:
+    """The mean of an aircraft's first airspeed and its type's usual final approach speed (nm/s; its constant
+    airspeed for the constant-speed models): the airspeed :func:`energy_time` estimates at."""
+    if "airspeed" not in aircraft.dynamics.state_names:
+        return aircraft.speed
+    return 0.5 * (aircraft.speed + performance_of(scenario.type_of(aircraft)).final_approach_cas.default)
 
 
 def earliest_landing_times(scenario: Scenario, shortest_paths: Mapping[str, np.ndarray] | None = None

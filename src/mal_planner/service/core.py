@@ -19,6 +19,7 @@ from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
+from mal_planner.errors import InvalidInput
 from mal_planner.obstacles import Superquadric
 from mal_planner.options import PlanOptions, scenario_for
 from mal_planner.scales import Scales
@@ -54,6 +55,7 @@ class PlanningService:
                  flown: bool = False) -> None:
         """``scenario``: what the service knows of the airspace and the aircraft; ``flown``: the plans are flown
         by aircraft the service watches (plans then keep the margins of flown plans)."""
+        _check_models(scenario)
         self._lock = threading.RLock()
         self.scenario = scenario
         self.rules = rules
@@ -318,3 +320,12 @@ class PlanningService:
 
 
 __all__ = ["PlanRequest", "PlanningService"]
+
+
+def _check_models(scenario: Scenario) -> None:
+    """The service's holds, re-anchoring and radar tracks are written for the constant-speed models: an
+    airspeed-model aircraft stops the start (``mal-plan`` plans it)."""
+    for ac in scenario.aircraft:
+        if "airspeed" in ac.dynamics.state_names:
+            raise InvalidInput(f"{scenario.source}: aircraft {ac.callsign}: model {ac.dynamics.name!r} is not run by "
+                               "the planning service yet (mal-plan plans it); use point_mass")

@@ -40,7 +40,8 @@ def check_aircraft(scenario: Scenario, traj: Trajectory, t: np.ndarray, x: np.nd
         fail((cs,), f"{cs}: lands at {t[-1]:.3f} s, not the fixed {landing_times[cs]:.3f} s")
     return AircraftCheck(cs, float(t[-1]), pos_dev, ang_dev, float(np.min(bank)), float(np.max(bank)),
                          float(np.min(n_v)), space.airspace_violation_nm, space.obstacles, space.obstacle_times,
-                         events, runway, limit_times)
+                         events, runway, limit_times,
+                         None if x.shape[1] < 6 else float(np.min(x[:, 5])))
 
 
 def _deviation(traj: Trajectory, t: np.ndarray, x: np.ndarray, tol: Tolerances,
@@ -50,7 +51,7 @@ def _deviation(traj: Trajectory, t: np.ndarray, x: np.ndarray, tol: Tolerances,
     cs = traj.callsign
     solved = traj.state_at(t)
     pos_dev = float(np.max(np.linalg.norm(solved[:, :3] - x[:, :3], axis=1)))
-    ang_dev = float(np.max(np.abs(np.remainder(solved[:, 3:] - x[:, 3:] + np.pi, 2 * np.pi) - np.pi)))
+    ang_dev = float(np.max(np.abs(np.remainder(solved[:, 3:5] - x[:, 3:5] + np.pi, 2 * np.pi) - np.pi)))
     if pos_dev > tol.deviation_nm:
         fail((cs,), f"{cs}: re-integrated path deviates {pos_dev:.4g} nm from the plan")
         # Refine where the deviation grows fastest: the mesh is least accurate there.

@@ -29,7 +29,8 @@ _RK_B = np.array([11 / 120, 0.0, 27 / 40, 27 / 40, -4 / 15, -4 / 15, 11 / 120])
 
 
 def _rk_step(model: DynamicsModel, x: np.ndarray, dt: np.ndarray, u: np.ndarray) -> np.ndarray:
-    """One step of the Runge-Kutta method above for every column: x (5, n), dt (n,), u (stages, 2, n)."""
+    """One step of the Runge-Kutta method above for every column: x (states, n), dt (n,), u (stages, controls,
+    n)."""
     k = np.empty((len(_RK_B), *x.shape))
     flat = k.reshape(len(_RK_B), -1)
     for s in range(len(_RK_B)):
@@ -45,7 +46,7 @@ class _Schedule:
     dt: np.ndarray
     """(n,) integration steps, in order; each lies inside one linear piece of the controls."""
     u: np.ndarray
-    """(n, stages, 2) controls at the stages of each step."""
+    """(n, stages, controls) controls at the stages of each step."""
     out_t: np.ndarray
     """(m,) dense sample times."""
     out_step: np.ndarray
@@ -53,14 +54,14 @@ class _Schedule:
     out_dt: np.ndarray
     """(m,) time from that node to the sample (0 at a node, less than the step otherwise)."""
     out_u: np.ndarray
-    """(m, stages, 2) controls at the stages of that last short step."""
+    """(m, stages, controls) controls at the stages of that last short step."""
 
 
 def _stage_controls(t0: np.ndarray, dt: np.ndarray, t1: np.ndarray, tp: np.ndarray, up: np.ndarray) -> np.ndarray:
     """Controls, linear between the samples (tp, up) of one piece, at the stages of steps t0 -> t0 + dt."""
     times = t0[:, None] + _RK_C * dt[:, None]
     times[:, _RK_C == 1.0] = t1[:, None]  # the step's exact end (a plan sample where the controls have a kink)
-    return np.stack([np.interp(times, tp, up[:, 0]), np.interp(times, tp, up[:, 1])], axis=-1)
+    return np.stack([np.interp(times, tp, up[:, k]) for k in range(up.shape[1])], axis=-1)
 
 
 def _schedule(traj: Trajectory, tol: Tolerances) -> _Schedule:
@@ -94,13 +95,13 @@ def _schedule(traj: Trajectory, tol: Tolerances) -> _Schedule:
         out_dt.append(delta)
         out_u.append(_stage_controls(nodes[k], delta, grid, tp, up))
         done += len(dt)
-    stages = len(_RK_B)
+    stages, width = len(_RK_B), u_plan.shape[1]
     out_t.append(t_plan[-1:])
     out_step.append(np.array([done]))
     out_dt.append(np.zeros(1))
-    out_u.append(np.zeros((1, stages, 2)))
+    out_u.append(np.zeros((1, stages, width)))
     dt = np.concatenate(dts) if dts else np.zeros(0)
-    u = np.concatenate(us) if us else np.zeros((0, stages, 2))
+    u = np.concatenate(us) if us else np.zeros((0, stages, width))
     return _Schedule(dt, u, *(np.concatenate(v) for v in (out_t, out_step, out_dt, out_u)))
 
 
@@ -117,7 +118,8 @@ def fly_all(trajectories: list[Trajectory], scenario: Scenario, tol: Tolerances)
             raise ValueError(f"{traj.callsign}: flying needs controls")
         schedules.append(_schedule(traj, tol))
     aircraft = [scenario.aircraft_by_callsign(traj.callsign) for traj in trajectories]
-    result: list[tuple[np.ndarray, np.ndarray]] = [(np.zeros(0), np.zeros((0, 5)))] * len(trajectories)
+    result: list[tuple[np.ndarray, np.ndarray]] = [(np.zeros(0), np.zeros((0, ac.dynamics.n_states)))
+                                                   for ac in aircraft]
     groups: dict[type, list[int]] = {}
     for i, ac in enumerate(aircraft):
         groups.setdefault(type(ac.dynamics), []).append(i)
@@ -126,12 +128,12 @@ def fly_all(trajectories: list[Trajectory], scenario: Scenario, tol: Tolerances)
         models = [aircraft[i].dynamics for i in members]
         steps = max(len(schedules[i].dt) for i in members)
         dt = np.zeros((steps, len(members)))
-        u = np.zeros((steps, stages, 2, len(members)))
+        u = np.zeros((steps, stages, models[0].n_controls, len(members)))
         for col, i in enumerate(members):
             n = len(schedules[i].dt)
             dt[:n, col] = schedules[i].dt
             u[:n, :, :, col] = schedules[i].u
-        nodes = np.empty((steps + 1, 5, len(members)))
+        nodes = np.empty((steps + 1, models[0].n_states, len(members)))
         nodes[0] = np.stack([aircraft[i].state0.astype(float) for i in members], axis=1)
         model = stacked_model(models)
         for k in range(steps):
@@ -190,7 +192,7 @@ def fly_reference(traj: Trajectory, scenario: Scenario, tol: Tolerances) -> tupl
             continue
 
         def rhs(time: float, x: np.ndarray, tp=tp, up=up) -> np.ndarray:
-            return model.rhs(x, np.array([np.interp(time, tp, up[:, 0]), np.interp(time, tp, up[:, 1])]))
+            return model.rhs(x, np.array([np.interp(time, tp, up[:, k]) for k in range(up.shape[1])]))
 
         n = max(2, int(math.ceil((tp[-1] - tp[0]) / tol.sample_dt)) + 1)
         grid = np.union1d(np.linspace(tp[0], tp[-1], n), tp)

@@ -1,9 +1,9 @@
 """The arrival procedures and the type's envelope, checked on a flown path (a scenario with ``procedures:``).
 
 Every rule of :mod:`mal_planner.scenario.procedures` and the type's OpenAP envelope (:mod:`mal_planner.performance`),
-on the flown samples, with no tolerance: speeds as calibrated airspeeds (the model's airspeed is a true airspeed),
-vertical speeds as the airspeed times the sine of the flight-path angle, altitudes as the threshold's elevation
-plus the height above it.
+on the flown samples, with no tolerance: speeds as calibrated airspeeds (the model's airspeed is a true airspeed: the
+constant one, or the airspeed model's flown state), vertical speeds as the airspeed times the sine of the flight-path
+angle, altitudes as the threshold's elevation plus the height above it.
 """
 
 from __future__ import annotations
@@ -23,8 +23,9 @@ FPM_PER_NM_S = nm_to_ft(60.0)
 
 class Break(NamedTuple):
     """A rule broken: one line naming the aircraft, its type, the value and the limit; when it first is; and whether
-    the NLP keeps the rule (:mod:`mal_planner.landing.profile`: a finer mesh there may mend it) or not (the speed
-    rules, which the constant-speed model cannot keep)."""
+    the NLP keeps the rule (:mod:`mal_planner.landing.profile` and, for the airspeed model, :mod:`mal_planner.landing.
+    speeds`: a finer mesh there may mend it) or not (the speed rules of the constant-speed model, which cannot keep
+    them)."""
 
     text: str
     time_s: float
@@ -33,22 +34,26 @@ class Break(NamedTuple):
 
 def procedure_breaks(scenario: Scenario, aircraft: Aircraft, t: np.ndarray, x: np.ndarray) -> list[Break]:
     """What ``aircraft``'s flown path ``(t, x)`` breaks of the scenario's procedures and its type's envelope (each
-    at the first sample that breaks it); [] when the scenario has no procedures."""
+    at the first sample that breaks it); without procedures, only an airspeed-model aircraft's speed envelope (the
+    constant-speed model's airspeed is the scenario's own choice)."""
     rules = scenario.procedures
-    if rules is None:
+    airspeed = x.shape[1] > 5
+    if rules is None and not airspeed:
         return []
     perf = performance_of(scenario.type_of(aircraft))
-    height = x[:, 2] - float(scenario.runway_state[2])
     altitude = x[:, 2] + scenario.elevation_nm
-    distance = np.hypot(x[:, 0] - scenario.runway_state[0], x[:, 1] - scenario.runway_state[1])
-    cas = cas_of_tas(np.full(len(t), aircraft.speed), altitude)
-    vertical = aircraft.speed * np.sin(x[:, 3])
-    course = float(scenario.runway_state[4])
-    past = (x[:, 0] - scenario.runway_state[0]) * np.cos(course) + \
-        (x[:, 1] - scenario.runway_state[1]) * np.sin(course) > 0.0
-    found = [(what, k, False) for what, k in _speeds(rules, perf, cas, altitude, distance)] + \
-        [(what, k, True) for what, k in _vertical(rules, perf, vertical, x[:, 2]) + _profile(rules, height, distance,
-                                                                                            past)]
+    tas = x[:, 5] if airspeed else np.full(len(t), aircraft.speed)
+    cas = cas_of_tas(tas, altitude)
+    found = [(what, k, airspeed) for what, k in _envelope(perf, cas, altitude)]
+    if rules is not None:
+        height = x[:, 2] - float(scenario.runway_state[2])
+        distance = np.hypot(x[:, 0] - scenario.runway_state[0], x[:, 1] - scenario.runway_state[1])
+        course = float(scenario.runway_state[4])
+        past = (x[:, 0] - scenario.runway_state[0]) * np.cos(course) + \
+            (x[:, 1] - scenario.runway_state[1]) * np.sin(course) > 0.0
+        found += [(what, k, airspeed) for what, k in _speeds(rules, cas, altitude, distance)]
+        found += [(what, k, True) for what, k in _vertical(rules, perf, tas * np.sin(x[:, 3]), x[:, 2]) +
+                  _profile(rules, height, distance, past)]
     return [Break(f"{aircraft.callsign} ({perf.type_code}): {what} at t={t[k]:.1f} s", float(t[k]), kept)
             for what, k, kept in found]
 
@@ -58,10 +63,9 @@ def _first(bad: np.ndarray) -> int | None:
     return int(hits[0]) if hits.size else None
 
 
-def _speeds(rules: Procedures, perf: Performance, cas: np.ndarray, altitude: np.ndarray,
-            distance: np.ndarray) -> list[tuple[str, int]]:
+def _speeds(rules: Procedures, cas: np.ndarray, altitude: np.ndarray, distance: np.ndarray) -> list[tuple[str, int]]:
     """Below the speed-limit altitude at most the limit, or the speed it arrived with while it slows down; inside
-    the final distance at most the final speed; within the type's VMO/MMO and above its slowest final approach."""
+    the final distance at most the final speed."""
     found = []
     slowing = np.minimum.accumulate(cas)
     low = altitude < rules.speed_limit_below_nm
@@ -72,9 +76,19 @@ def _speeds(rules: Procedures, perf: Performance, cas: np.ndarray, altitude: np.
     if (k := _first((distance < rules.final_distance_nm) & (cas > rules.final_speed))) is not None:
         found.append((f"{nm_per_s_to_kt(cas[k]):.0f} kt CAS {distance[k]:.2f} nm from the threshold (limit "
                       f"{nm_per_s_to_kt(rules.final_speed):.0f} kt inside {rules.final_distance_nm:g} nm)", k))
-    if (k := _first(cas > perf.max_cas(altitude))) is not None:
+    return found
+
+
+def _envelope(perf: Performance, cas: np.ndarray, altitude: np.ndarray | None = None) -> list[tuple[str, int]]:
+    """Within the type's VMO/MMO and above its slowest final approach (or the speed it started with, if slower: a
+    radar state); at the threshold at most its fastest final approach."""
+    found = []
+    if cas[-1] > perf.final_approach_cas.high:
+        found.append((f"lands at {nm_per_s_to_kt(cas[-1]):.0f} kt CAS, above the type's final approach speeds "
+                      f"({nm_per_s_to_kt(perf.final_approach_cas.high):.0f} kt at most)", len(cas) - 1))
+    if altitude is not None and (k := _first(cas > perf.max_cas(altitude))) is not None:
         found.append((f"{nm_per_s_to_kt(cas[k]):.0f} kt CAS above the type's VMO/MMO", k))
-    if (k := _first(cas < perf.final_approach_cas.low)) is not None:
+    if (k := _first(cas < min(perf.final_approach_cas.low, cas[0]))) is not None:
         found.append((f"{nm_per_s_to_kt(cas[k]):.0f} kt CAS below the type's slowest final approach "
                       f"({nm_per_s_to_kt(perf.final_approach_cas.low):.0f} kt)", k))
     return found

@@ -64,6 +64,8 @@ class AircraftCheck:
     limit_violation_times_s: list[float] = field(default_factory=list)
     """Times at which the controls break a limit, the flown path leaves the airspace or misses the hole, or (for
     refining the mesh) the flown path drifts fastest from the published one when it drifts too far."""
+    slowest_airspeed: float | None = None
+    """The slowest airspeed flown (nm/s; the airspeed model), None: the model's constant airspeed."""
 
 
 @dataclass

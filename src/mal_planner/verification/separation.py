@@ -80,7 +80,7 @@ def _far_apart(scenario: Scenario, a: str, b: str, ta: np.ndarray, xa: np.ndarra
     V_a + V_b (airspeeds) bounds the closing speed in a wind too: a uniform wind moves both alike, so their relative
     velocity is that of their air velocities.
     """
-    speeds = scenario.aircraft_by_callsign(a).speed + scenario.aircraft_by_callsign(b).speed
+    speeds = _fastest(scenario, a, xa) + _fastest(scenario, b, xb)
     radius = scenario.separation_radius_nm  # farther apart than this is separated, also for a cylinder
     dt = radius / speeds
     grid = np.append(np.arange(t_start, t_end, dt), t_end)
@@ -94,6 +94,11 @@ def _far_apart(scenario: Scenario, a: str, b: str, ta: np.ndarray, xa: np.ndarra
         return None
     keep = np.flatnonzero(lower <= dist.min())
     return [(float(grid[k]), float(grid[k + 1])) for k in keep]
+
+
+def _fastest(scenario: Scenario, callsign: str, x: np.ndarray) -> float:
+    """The fastest airspeed (nm/s) of a flown path: its airspeed state's largest, else its model's constant one."""
+    return float(np.max(x[:, 5])) if x.shape[1] > 5 else scenario.aircraft_by_callsign(callsign).speed
 
 
 def _closest_approaches(names: list[tuple[str, str]], grids: list[np.ndarray],

@@ -15,11 +15,13 @@ def chord_error_bound(aircraft, t: np.ndarray) -> float:
     """Largest distance (nm) between the path and the chord between two samples ``t`` apart.
 
     A constant-speed point mass accelerates at g sqrt((n_v - cos gamma)^2 + n_h^2) at most (a constant wind adds
-    none); a curve with acceleration <= a stays within dt^2 a / 8 of its chord over a step dt.
+    none), the airspeed model along its path by g |n_x - sin gamma| more; a curve with acceleration <= a stays
+    within dt^2 a / 8 of its chord over a step dt.
     """
     lim = aircraft.limits
+    along = 1.0 + max(abs(lim.n_x[0]), abs(lim.n_x[1])) if "n_x" in aircraft.dynamics.control_names else 0.0
     a_max = aircraft.dynamics.gravity * math.hypot(max(abs(lim.n_v[0] - 1.0), lim.n_v[1] + 1.0),
-                                                   max(abs(lim.n_h[0]), abs(lim.n_h[1])))
+                                                   max(abs(lim.n_h[0]), abs(lim.n_h[1])), along)
     dt = float(np.max(np.diff(t))) if len(t) > 1 else 0.0
     return dt * dt * a_max / 8.0
 

@@ -31,7 +31,9 @@ def landing_gaps(scenario: Scenario, checks: list[AircraftCheck], tol: Tolerance
             lead, follow = scenario.aircraft_by_callsign(a.callsign), scenario.aircraft_by_callsign(b.callsign)
             nm = wake_distance_nm(scenario.wake, lead.wake_category, follow.wake_category, scenario.separation_nm)
             record.wake, record.wake_nm = f"{lead.wake_category}->{follow.wake_category}", nm
-            need = nm / scenario.final_ground_speed(follow)  # on final at its ground speed (longer into a headwind)
+            # On final at its ground speed (longer into a headwind); an airspeed-model follower at the slowest
+            # airspeed it flies (its landing speed or less).
+            need = nm / scenario.final_ground_speed(follow, b.slowest_airspeed)
             record.needed_s = max(record.needed_s, need)
             if gap < need:
                 fail((a.callsign, b.callsign), f"{a.callsign}->{b.callsign}: landings {gap:.2f} s apart, the "

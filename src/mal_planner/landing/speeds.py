@@ -1,0 +1,106 @@
+"""The speed envelope of an airspeed-model aircraft as the landing NLP keeps it (:class:`~mal_planner.dynamics.
+AirspeedModel`; the verification checks the same limits on the flown path, with no tolerance).
+
+Each row is >= 0 where the calibrated airspeed (CAS, from the true airspeed state and the altitude in OpenAP's ISA,
+on CasADi symbols) keeps a limit, less :attr:`~mal_planner.landing.margins.Margins.speed_share` of it:
+
+* the type's envelope: above its slowest final approach speed, below VMO/MMO (:mod:`mal_planner.performance`), and
+  (a bound of the final state) at most its fastest final approach speed over the threshold;
+* with arrival procedures, the speed limit below its altitude and the final approach speed inside the final
+  distance. Both are step rules; the NLP keeps smooth cones above them that a real aircraft could still fly: above
+  the limit's altitude the speed may be higher by what the altitude could buy at equal energy, V^2 <= V_limit^2 +
+  2 g (h - h_limit), and beyond the final distance by what the type's idle deceleration in level flight takes off
+  over the way, V^2 <= V_final^2 + 2 a (d - D). An aircraft that starts faster than a limit (a radar state) may
+  instead slow down from its first speed at half that deceleration (the rules allow it to slow down to the limit);
+* with arrival procedures, the descent rate V sin(gamma) within the rules' and the type's, less the reserve of
+  :mod:`mal_planner.landing.profile` (where the constant-speed model bounds the flight-path angle instead).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import casadi as ca
+
+from mal_planner.landing.profile import DISTANCE_SMOOTHING, RATE_RESERVE
+from mal_planner.performance import Performance, cas_of_tas, performance_of, tas_of_cas
+from mal_planner.scenario import Aircraft, Scenario
+from mal_planner.units import METRES_PER_NM
+
+SLOWING_SHARE = 0.5
+"""The share of the type's idle deceleration in level flight an aircraft that starts too fast is asked for (it
+descends at the same time)."""
+
+
+def cas_expression(tas, altitude_nm):
+    """Calibrated airspeed (nm/s) of the true airspeed ``tas`` (nm/s) at pressure altitude ``altitude_nm`` (nm), on
+    CasADi symbols (OpenAP's CasADi atmosphere, the same ISA as :func:`mal_planner.performance.cas_of_tas`)."""
+    from openap.casadi import aero
+
+    return aero.tas2cas(tas * METRES_PER_NM, altitude_nm * METRES_PER_NM) / METRES_PER_NM
+
+
+def landing_airspeed(scenario: Scenario, aircraft: Aircraft, share: float) -> float:
+    """The fastest true airspeed (nm/s) ``aircraft`` may cross the threshold at: its type's fastest final approach
+    speed (CAS) less ``share`` of it, at the threshold's elevation (the final state's bound)."""
+    perf = performance_of(scenario.type_of(aircraft))
+    return float(tas_of_cas((1.0 - share) * perf.final_approach_cas.high, scenario.runway_state[2] +
+                            scenario.elevation_nm))
+
+
+@dataclass(frozen=True)
+class SpeedRules:
+    """The speed rows of one airspeed-model aircraft."""
+
+    perf: Performance
+    share: float
+    """Of each limit kept free."""
+    first_cas: float
+    """Its calibrated airspeed at the start (nm/s)."""
+    deceleration: float
+    """Its idle deceleration in level flight (nm/s^2, > 0)."""
+    procedures: bool
+
+    @classmethod
+    def of(cls, scenario: Scenario, aircraft: Aircraft, share: float) -> SpeedRules | None:
+        """The rows of ``aircraft`` (None: its model's airspeed is constant)."""
+        if "airspeed" not in aircraft.dynamics.state_names:
+            return None
+        perf = performance_of(scenario.type_of(aircraft))
+        state = aircraft.state0
+        first = float(cas_of_tas(aircraft.dynamics.airspeed(state), state[2] + scenario.elevation_nm))
+        deceleration = -aircraft.limits.n_x[0] * aircraft.dynamics.gravity
+        return cls(perf, share, first, max(deceleration, 0.0), scenario.procedures is not None)
+
+    @property
+    def n_rows(self) -> int:
+        return 5 if self.procedures else 2
+
+    def rows(self, state, scenario: Scenario, aircraft: Aircraft, t) -> list:
+        """The rows (each >= 0; dimensionless, in shares of the type's final approach speed) at ``state``, time
+        ``t``."""
+        altitude = state[2] + scenario.elevation_nm
+        cas = cas_expression(state[5], altitude)
+        ref = self.perf.final_approach_cas.default
+        keep = 1.0 - self.share
+        slowing = self.first_cas - SLOWING_SHARE * self.deceleration * t
+        top = ca.fmin(self.perf.vmo, cas_expression(self._mmo_tas(altitude), altitude))
+        lowest = min(self.perf.final_approach_cas.low / keep, self.first_cas)  # a radar state may be slower
+        out = [(cas - lowest) / ref, (ca.fmax(keep * top, slowing) - cas) / ref]
+        if not self.procedures:
+            return out
+        rules = scenario.procedures
+        above = ca.fmax(altitude - rules.speed_limit_below_nm, 0.0)
+        limit = ca.sqrt((keep * rules.speed_limit) ** 2 + 2.0 * scenario.gravity * above)
+        runway = scenario.runway_state
+        smoothing = DISTANCE_SMOOTHING * rules.final_distance_nm  # smooth at the threshold (the final state)
+        distance = ca.sqrt((state[0] - runway[0]) ** 2 + (state[1] - runway[1]) ** 2 + smoothing**2)
+        beyond = ca.fmax(distance - rules.final_distance_nm, 0.0)
+        final = ca.sqrt((keep * rules.final_speed) ** 2 + 2.0 * self.deceleration * beyond)
+        sink = scenario.descent_rate_limit(aircraft) * (1.0 - RATE_RESERVE) + state[5] * ca.sin(state[3])
+        return [*out, (ca.fmax(limit, slowing) - cas) / ref, (ca.fmax(final, slowing) - cas) / ref, sink / ref]
+
+    def _mmo_tas(self, altitude_nm):
+        from openap.casadi import aero
+
+        return aero.mach2tas(self.perf.mmo, altitude_nm * METRES_PER_NM) / METRES_PER_NM
