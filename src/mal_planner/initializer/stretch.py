@@ -26,7 +26,7 @@ from mal_planner.initializer.smoothing import remove_repeats
 from mal_planner.initializer.timed_paths import air_path_length, timed_path
 from mal_planner.scales import Scales
 from mal_planner.scenario import Aircraft, Scenario
-from mal_planner.sequencing.timing import dubins_path_length
+from mal_planner.sequencing.timing import dubins_path_length, length_for_time
 
 log = logging.getLogger("mal_planner.initializer")
 
@@ -103,7 +103,7 @@ class LengthWindow:
     @classmethod
     def of(cls, scenario: Scenario, ac: Aircraft, scheduled: float, scales: Scales,
            options: StretchOptions) -> LengthWindow:
-        v = ac.speed
+        v = length_for_time(scenario, ac, scheduled) / scheduled if scheduled > 0.0 else ac.speed  # mean airspeed
         dubins, straight = dubins_path_length(scenario, ac)
         turns = max(dubins - straight, 0.0)
         window, margin = scales.seconds(options.window_turn_times), scales.seconds(options.landing_margin_turn_times)

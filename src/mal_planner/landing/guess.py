@@ -17,6 +17,7 @@ from mal_planner.dynamics import DynamicsModel
 from mal_planner.obstacles import Gate
 from mal_planner.scales import level_turn_radius
 from mal_planner.scenario import Aircraft, Scenario
+from mal_planner.sequencing.timing import nominal_speeds
 
 
 @dataclass(frozen=True)
@@ -63,9 +64,13 @@ class AircraftGuess:
         u[:, 1] = np.clip(u[:, 1], max(limits.n_v[0], 1e-3), limits.n_v[1])
         cap = np.tan(limits.bank_angle_max) * u[:, 1]
         u[:, 0] = np.clip(u[:, 0], np.maximum(-cap, limits.n_h[0]), np.minimum(cap, limits.n_h[1]))
-        if "n_x" in aircraft.dynamics.control_names:  # hold the airspeed
+        if "n_x" in aircraft.dynamics.control_names:  # hold the airspeed, or change it as a scheduled guess does
             gamma = np.interp(t, self.t, self.states[:, 3])
-            u = np.column_stack([u, np.clip(np.sin(gamma), *limits.n_x)])
+            rate = np.zeros_like(t)
+            if self.states.shape[1] > 5 and len(self.t) > 1:
+                rate = np.interp(t, self.t, np.gradient(self.states[:, 5], self.t))
+            n_x = np.sin(gamma) + rate / aircraft.dynamics.gravity
+            u = np.column_stack([u, np.clip(n_x, *limits.n_x)])
         return u
 
 
@@ -150,7 +155,7 @@ def guess_from_initial_plan(scenario: Scenario, trajectories: Sequence, landing_
         ac = scenario.aircraft_by_callsign(traj.callsign)
         t, states = _path_states(np.asarray(traj.waypoints, float), ac.dynamics,
                                  level_turn_radius(ac) / ac.speed / SAMPLES_PER_TURN_TIME)
-        out.append(_make_guess(ac, t, states, gate, t_land))
+        out.append(scheduled_guess(scenario, ac, _make_guess(ac, t, states, gate, t_land), gate))
     return out
 
 
@@ -163,8 +168,25 @@ def straight_line_guess(scenario: Scenario, callsigns: Sequence[str], landing_ti
         ac = scenario.aircraft_by_callsign(cs)
         points = np.vstack([ac.position, scenario.runway_state[:3]])
         t, states = _path_states(points, ac.dynamics, level_turn_radius(ac) / ac.speed / SAMPLES_PER_TURN_TIME)
-        out.append(_make_guess(ac, t, states, gate, t_land))
+        out.append(scheduled_guess(scenario, ac, _make_guess(ac, t, states, gate, t_land), gate))
     return out
+
+
+def scheduled_guess(scenario: Scenario, aircraft: Aircraft, guess: AircraftGuess, gate: Gate | None
+                    ) -> AircraftGuess:
+    """An airspeed-model aircraft's guess re-timed along its path at the nominal speed schedule of the sequencer
+    (:func:`~mal_planner.sequencing.timing.nominal_speeds`, scaled to land at the guess's landing time), with that
+    airspeed as its sixth column; other guesses unchanged."""
+    if "airspeed" not in aircraft.dynamics.state_names or scenario.procedures is None or len(guess.t) < 2:
+        return guess
+    steps = np.linalg.norm(np.diff(guess.states[:, :3], axis=0), axis=1)
+    along = np.concatenate([[0.0], np.cumsum(steps)])
+    speed = nominal_speeds(scenario, aircraft, along[-1] - along)
+    t = np.concatenate([[0.0], np.cumsum(steps / (0.5 * (speed[:-1] + speed[1:])))])
+    scale = guess.landing_time / t[-1] if t[-1] > 0.0 else 1.0
+    states = np.column_stack([guess.states, speed / scale])
+    t = t * scale
+    return AircraftGuess(guess.callsign, t, states, guess.landing_time, _crossing_time(gate, t, states[:, :3]))
 
 
 def guess_along(aircraft: Aircraft, t: np.ndarray, states: np.ndarray, gate: Gate | None, landing_time: float

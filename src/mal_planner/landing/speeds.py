@@ -32,6 +32,17 @@ SLOWING_SHARE = 0.5
 descends at the same time)."""
 
 
+KNEE_SHARE = 0.01
+"""The knees of the cones (where the altitude passes the speed limit's, the distance the final distance) are rounded
+over this share of that altitude or distance, from below: the NLP's limit is never above the rule's."""
+
+
+def _below_max(a, b, width: float):
+    """A smooth max(a, b), never above it: (a + b + sqrt((a - b)^2 + w^2)) / 2 - w / 2 (equal where a = b, within
+    w / 2 of it elsewhere): IPOPT and the mesh refinement dislike kinks."""
+    return 0.5 * (a + b + ca.sqrt((a - b) ** 2 + width**2)) - 0.5 * width
+
+
 def cas_expression(tas, altitude_nm):
     """Calibrated airspeed (nm/s) of the true airspeed ``tas`` (nm/s) at pressure altitude ``altitude_nm`` (nm), on
     CasADi symbols (OpenAP's CasADi atmosphere, the same ISA as :func:`mal_planner.performance.cas_of_tas`)."""
@@ -86,16 +97,17 @@ class SpeedRules:
         slowing = self.first_cas - SLOWING_SHARE * self.deceleration * t
         top = ca.fmin(self.perf.vmo, cas_expression(self._mmo_tas(altitude), altitude))
         lowest = min(self.perf.final_approach_cas.low / keep, self.first_cas)  # a radar state may be slower
+        # An aircraft slowing down from its first speed rides that branch from t = 0: an exact max keeps it feasible.
         out = [(cas - lowest) / ref, (ca.fmax(keep * top, slowing) - cas) / ref]
         if not self.procedures:
             return out
         rules = scenario.procedures
-        above = ca.fmax(altitude - rules.speed_limit_below_nm, 0.0)
+        above = _below_max(altitude - rules.speed_limit_below_nm, 0.0, KNEE_SHARE * rules.speed_limit_below_nm)
         limit = ca.sqrt((keep * rules.speed_limit) ** 2 + 2.0 * scenario.gravity * above)
         runway = scenario.runway_state
         smoothing = DISTANCE_SMOOTHING * rules.final_distance_nm  # smooth at the threshold (the final state)
         distance = ca.sqrt((state[0] - runway[0]) ** 2 + (state[1] - runway[1]) ** 2 + smoothing**2)
-        beyond = ca.fmax(distance - rules.final_distance_nm, 0.0)
+        beyond = _below_max(distance - rules.final_distance_nm, 0.0, KNEE_SHARE * rules.final_distance_nm)
         final = ca.sqrt((keep * rules.final_speed) ** 2 + 2.0 * self.deceleration * beyond)
         sink = scenario.descent_rate_limit(aircraft) * (1.0 - RATE_RESERVE) + state[5] * ca.sin(state[3])
         return [*out, (ca.fmax(limit, slowing) - cas) / ref, (ca.fmax(final, slowing) - cas) / ref, sink / ref]

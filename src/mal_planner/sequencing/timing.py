@@ -83,17 +83,36 @@ def flight_time(scenario: Scenario, aircraft: Aircraft, length_nm: float) -> flo
     profile: the sequencer then asks for times the plan can keep): its first airspeed slowed down at a share of its
     idle deceleration to the final speed at the final distance, v(d)^2 = v_f^2 + 2 a (d - D), then evenly to its
     type's usual final approach speed over the threshold."""
+    if length_nm <= 0.0:
+        return 0.0
+    d = np.linspace(0.0, length_nm, SCHEDULE_SAMPLES)
+    return float(np.trapezoid(1.0 / nominal_speeds(scenario, aircraft, d), d))
+
+
+def nominal_speeds(scenario: Scenario, aircraft: Aircraft, to_go_nm: np.ndarray) -> np.ndarray:
+    """The airspeed (nm/s) of :func:`flight_time`'s schedule with ``to_go_nm`` left to the threshold."""
     rules = scenario.procedures
-    if "airspeed" not in aircraft.dynamics.state_names or rules is None or length_nm <= 0.0:
-        return length_nm / aircraft.speed
+    to_go = np.asarray(to_go_nm, float)
+    if "airspeed" not in aircraft.dynamics.state_names or rules is None:
+        return np.full(to_go.shape, aircraft.speed)
     landing = performance_of(scenario.type_of(aircraft)).final_approach_cas.default
     final = max(min(rules.final_speed, aircraft.speed), landing)
     slowing = NOMINAL_SLOWING_SHARE * -aircraft.limits.n_x[0] * aircraft.dynamics.gravity
-    d = np.linspace(0.0, length_nm, SCHEDULE_SAMPLES)
-    beyond = np.sqrt(final**2 + 2.0 * slowing * np.maximum(d - rules.final_distance_nm, 0.0))
-    inside = np.sqrt(landing**2 + (final**2 - landing**2) * np.minimum(d / rules.final_distance_nm, 1.0))
-    v = np.minimum(aircraft.speed, np.where(d > rules.final_distance_nm, beyond, inside))
-    return float(np.trapezoid(1.0 / v, d))
+    beyond = np.sqrt(final**2 + 2.0 * slowing * np.maximum(to_go - rules.final_distance_nm, 0.0))
+    inside = np.sqrt(landing**2 + (final**2 - landing**2) * np.clip(to_go / rules.final_distance_nm, 0.0, 1.0))
+    return np.minimum(aircraft.speed, np.where(to_go > rules.final_distance_nm, beyond, inside))
+
+
+def length_for_time(scenario: Scenario, aircraft: Aircraft, seconds: float) -> float:
+    """The length (nm) :func:`flight_time` flies in ``seconds`` (its inverse, by bisection: it grows with the
+    length)."""
+    if "airspeed" not in aircraft.dynamics.state_names or scenario.procedures is None or seconds <= 0.0:
+        return max(seconds, 0.0) * aircraft.speed
+    lo, hi = 0.0, seconds * aircraft.speed
+    for _ in range(50):
+        mid = 0.5 * (lo + hi)
+        lo, hi = (mid, hi) if flight_time(scenario, aircraft, mid) < seconds else (lo, mid)
+    return 0.5 * (lo + hi)
 
 
 NOMINAL_SLOWING_SHARE = 0.5
