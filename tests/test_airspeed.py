@@ -153,3 +153,30 @@ def test_the_service_says_it_does_not_run_the_airspeed_model_yet() -> None:
     with pytest.raises(InvalidInput, match=r"aircraft FAST: model 'point_mass_airspeed' is not run by the planning"):
         PlanningService(fast(), ServiceRules())
     PlanningService(fast("point_mass"), ServiceRules())  # the constant-speed model runs
+
+
+def test_the_sequencer_times_an_arrival_that_slows_down_and_loses_its_energy() -> None:
+    """The nominal speed schedule takes longer than the first airspeed would; an aircraft higher up must fly farther
+    to lose its energy at idle (per nm flown, whatever its speed), which bounds its landing from below."""
+    from mal_planner.sequencing.timing import (
+        earliest_landing_time,
+        energy_distance,
+        fastest_dynamics,
+        flight_time,
+        reachable_lower_bound,
+    )
+
+    sc = fast()
+    ac = sc.aircraft[0]
+    assert flight_time(sc, ac, 14.0) > 14.0 / ac.speed * 1.2  # from 240 kt down to the A320's 140 kt
+    assert flight_time(fast("point_mass"), fast("point_mass").aircraft[0], 14.0) == pytest.approx(14.0 / ac.speed)
+    assert energy_distance(fast("point_mass"), fast("point_mass").aircraft[0]) == 0.0
+    high = scenario_from_text(FAST.format(speed=kt_to_nm_per_s(240.0), model="point_mass_airspeed").replace(
+        "0.4937]", "1.6]"))  # 9,700 ft instead of 3,000 ft
+    near, far = energy_distance(sc, ac), energy_distance(high, high.aircraft[0])
+    assert far - near == pytest.approx((1.6 - 0.4937) / -ac.limits.n_x[0], rel=1e-9)  # the height alone
+    assert far > 14.0 * 1.5  # farther than the straight way: it must stretch its path to land
+    fastest = fastest_dynamics(high, high.aircraft[0]).speed  # its VMO as a true airspeed up there
+    assert nm_per_s_to_kt(fastest) > 350.0
+    assert reachable_lower_bound(high, high.aircraft[0]) == pytest.approx(far / fastest)
+    assert earliest_landing_time(high, high.aircraft[0]) > earliest_landing_time(sc, ac) + 60.0

@@ -11,7 +11,8 @@ on CasADi symbols) keeps a limit, less :attr:`~mal_planner.landing.margins.Margi
   the limit's altitude the speed may be higher by what the altitude could buy at equal energy, V^2 <= V_limit^2 +
   2 g (h - h_limit), and beyond the final distance by what the type's idle deceleration in level flight takes off
   over the way, V^2 <= V_final^2 + 2 a (d - D). An aircraft that starts faster than a limit (a radar state) may
-  instead slow down from its first speed at half that deceleration (the rules allow it to slow down to the limit);
+  instead slow down from its first speed, at half that deceleration once it has had a turn time to settle (the rules
+  allow it to slow down to the limit);
 * with arrival procedures, the descent rate V sin(gamma) within the rules' and the type's, less the reserve of
   :mod:`mal_planner.landing.profile` (where the constant-speed model bounds the flight-path angle instead).
 """
@@ -24,6 +25,7 @@ import casadi as ca
 
 from mal_planner.landing.profile import DISTANCE_SMOOTHING, RATE_RESERVE
 from mal_planner.performance import Performance, cas_of_tas, performance_of, tas_of_cas
+from mal_planner.scales import level_turn_radius
 from mal_planner.scenario import Aircraft, Scenario
 from mal_planner.units import METRES_PER_NM
 
@@ -70,6 +72,10 @@ class SpeedRules:
     """Its calibrated airspeed at the start (nm/s)."""
     deceleration: float
     """Its idle deceleration in level flight (nm/s^2, > 0)."""
+    settle_s: float
+    """Its turn time (the time to turn one radian at its bank limit): an aircraft that starts too fast, descending,
+    slows down at once only as much as its first flight-path angle allows; the required slowing grows to its rate
+    over about this long (``a t^2 / (t + T)``: no slowing asked at t = 0, where its speed is given)."""
     procedures: bool
 
     @classmethod
@@ -81,7 +87,8 @@ class SpeedRules:
         state = aircraft.state0
         first = float(cas_of_tas(aircraft.dynamics.airspeed(state), state[2] + scenario.elevation_nm))
         deceleration = -aircraft.limits.n_x[0] * aircraft.dynamics.gravity
-        return cls(perf, share, first, max(deceleration, 0.0), scenario.procedures is not None)
+        settle = level_turn_radius(aircraft) / aircraft.speed
+        return cls(perf, share, first, max(deceleration, 0.0), settle, scenario.procedures is not None)
 
     @property
     def n_rows(self) -> int:
@@ -94,7 +101,7 @@ class SpeedRules:
         cas = cas_expression(state[5], altitude)
         ref = self.perf.final_approach_cas.default
         keep = 1.0 - self.share
-        slowing = self.first_cas - SLOWING_SHARE * self.deceleration * t
+        slowing = self.first_cas - SLOWING_SHARE * self.deceleration * t**2 / (t + self.settle_s)
         top = ca.fmin(self.perf.vmo, cas_expression(self._mmo_tas(altitude), altitude))
         lowest = min(self.perf.final_approach_cas.low / keep, self.first_cas)  # a radar state may be slower
         # An aircraft slowing down from its first speed rides that branch from t = 0: an exact max keeps it feasible.

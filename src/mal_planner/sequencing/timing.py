@@ -100,7 +100,10 @@ def nominal_speeds(scenario: Scenario, aircraft: Aircraft, to_go_nm: np.ndarray)
     slowing = NOMINAL_SLOWING_SHARE * -aircraft.limits.n_x[0] * aircraft.dynamics.gravity
     beyond = np.sqrt(final**2 + 2.0 * slowing * np.maximum(to_go - rules.final_distance_nm, 0.0))
     inside = np.sqrt(landing**2 + (final**2 - landing**2) * np.clip(to_go / rules.final_distance_nm, 0.0, 1.0))
-    return np.minimum(aircraft.speed, np.where(to_go > rules.final_distance_nm, beyond, inside))
+    # No faster than the speed limit's true airspeed where it applies (or at the first altitude, if lower).
+    altitude = min(rules.speed_limit_below_nm, float(aircraft.position[2]) + scenario.elevation_nm)
+    top = min(aircraft.speed, float(tas_of_cas(rules.speed_limit, max(altitude, 0.0))))
+    return np.minimum(top, np.where(to_go > rules.final_distance_nm, beyond, inside))
 
 
 def length_for_time(scenario: Scenario, aircraft: Aircraft, seconds: float) -> float:
@@ -132,21 +135,27 @@ def fastest_dynamics(scenario: Scenario, aircraft: Aircraft) -> DynamicsModel:
 
 def descent_time(scenario: Scenario, aircraft: Aircraft) -> float:
     """The shortest time (s) ``aircraft`` takes down to the threshold at the steepest descent the scenario's
-    procedures and its type allow (0 without procedures), and for the airspeed model at least
-    :func:`energy_time` at its fastest airspeed."""
+    procedures and its type allow (0 without procedures), and for the airspeed model at least its
+    :func:`energy_distance` at its fastest airspeed."""
     limit = scenario.descent_rate_limit(aircraft)
     height = float(aircraft.position[2] - scenario.runway_state[2])
     rate = 0.0 if limit is None or height <= 0.0 else height / limit
-    return max(rate, energy_time(scenario, aircraft, fastest_dynamics(scenario, aircraft).speed))
+    return max(rate, energy_distance(scenario, aircraft) / fastest_dynamics(scenario, aircraft).speed)
 
 
-def energy_time(scenario: Scenario, aircraft: Aircraft, airspeed: float) -> float:
-    """Seconds an airspeed-model aircraft takes at least to lose the energy between its start and the threshold
-    at its fastest final approach speed, flying at ``airspeed`` (0 for the constant-speed models).
+ENERGY_RESERVE = 0.1
+"""The share of the idle deceleration an arrival manager's estimate keeps in reserve (:func:`energy_distance` of
+:func:`earliest_landing_time`): a plan that must stay at idle all the way is at the edge of what the NLP can find."""
+
+
+def energy_distance(scenario: Scenario, aircraft: Aircraft, reserve: float = 0.0) -> float:
+    """The shortest way (nm, through the air) an airspeed-model aircraft flies while it loses the energy between its
+    start and the threshold at its fastest final approach speed (0 for the constant-speed models).
 
     The energy height h + V^2 / 2g changes at V n_x (the point mass's energy equation, from V' = g (n_x - sin
-    gamma)), so at idle thrust it falls by V |n_x_low| at most: an aircraft high and fast can land only that late
-    (7,800 ft and 250 kt above the threshold of an A320: about 10 minutes; a real one at Paris-CDG took 644 s).
+    gamma)), so per nm flown it falls by |n_x_low| at most, at idle thrust, whatever the speed: an aircraft high and
+    fast must fly that far (SVA127 at Paris-CDG, 11,100 ft and 302 kt 6.7 nm out: 42 nm; it really landed 644 s
+    later). ``reserve``: the share of the idle deceleration left unused.
     """
     dyn = aircraft.dynamics
     if "airspeed" not in dyn.state_names or aircraft.limits.n_x[0] >= 0.0:
@@ -155,7 +164,7 @@ def energy_time(scenario: Scenario, aircraft: Aircraft, airspeed: float) -> floa
                                float(scenario.runway_state[2]) + scenario.elevation_nm))
     first = float(aircraft.position[2]) + aircraft.speed**2 / (2.0 * dyn.gravity)
     last = float(scenario.runway_state[2]) + landing**2 / (2.0 * dyn.gravity)
-    return max(first - last, 0.0) / (airspeed * -aircraft.limits.n_x[0])
+    return max(first - last, 0.0) / (-aircraft.limits.n_x[0] * (1.0 - reserve))
 
 
 def reachable_lower_bound(scenario: Scenario, aircraft: Aircraft) -> float:
@@ -219,18 +228,9 @@ def earliest_landing_time(scenario: Scenario, aircraft: Aircraft, detour_nm: flo
     """Turn-aware estimate (s) of the earliest landing; ``detour_nm``: extra length around obstacles."""
     length, _, route = _dubins_route(scenario, aircraft)
     climb = abs(float(scenario.runway_state[2] - aircraft.position[2]))
-    length = math.hypot(length + max(detour_nm, 0.0), climb)
+    length = max(math.hypot(length + max(detour_nm, 0.0), climb), energy_distance(scenario, aircraft, ENERGY_RESERVE))
     return max(flight_time(scenario, aircraft, length) * wind_factor(aircraft, route),
-               energy_time(scenario, aircraft, nominal_airspeed(scenario, aircraft)),
                reachable_lower_bound(scenario, aircraft))
-
-
-def nominal_airspeed(scenario: Scenario, aircraft: Aircraft) -> float:
-    """The mean of an aircraft's first airspeed and its type's usual final approach speed (nm/s; its constant
-    airspeed for the constant-speed models): the airspeed :func:`energy_time` estimates at."""
-    if "airspeed" not in aircraft.dynamics.state_names:
-        return aircraft.speed
-    return 0.5 * (aircraft.speed + performance_of(scenario.type_of(aircraft)).final_approach_cas.default)
 
 
 def earliest_landing_times(scenario: Scenario, shortest_paths: Mapping[str, np.ndarray] | None = None
