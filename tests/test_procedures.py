@@ -11,7 +11,7 @@ import pytest
 from mal_planner.performance import UnknownAircraftType, cas_of_tas, performance_of, tas_of_cas
 from mal_planner.scenario import ScenarioError, scenario_from_text
 from mal_planner.trajectory import Trajectory
-from mal_planner.units import METRES_PER_NM, ft_to_nm, kt_to_nm_per_s, nm_per_s_to_kt
+from mal_planner.units import METRES_PER_NM, ft_to_nm, kt_to_nm_per_s, nm_per_s_to_kt, nm_to_ft
 from mal_planner.verification import verify
 from mal_planner.verification.procedures import procedure_breaks
 
@@ -177,3 +177,19 @@ def test_an_aircraft_starting_at_the_minimum_height_starts_above_the_nlps_floor(
         floor = float(floor_height(sc, ac, *ac.state0[:2], margin))
         assert ac.state0[2] - floor >= margin - 1e-12
         assert floor <= ft_to_nm(1000.0)
+
+
+def test_the_final_speed_holds_on_the_final_approach_not_over_the_airport() -> None:
+    """Level across the threshold at 300 kt: at 1,500 ft it is on the final approach and breaks the 180-kt rule; at
+    13,000 ft (above the glide path at 4 nm plus the minimum height: 2,270 ft) it overflies the airport and does not."""
+    sc = real()
+    fast = sc.aircraft[1]
+    for height_ft, broken in ((1500.0, True), (13000.0, False)):
+        t = np.linspace(0.0, 200.0, 401)
+        x = np.zeros((len(t), 5))
+        x[:, 0] = 10.0 - fast.speed * t
+        x[:, 2] = ft_to_nm(height_ft)
+        x[:, 4] = math.pi
+        texts = [b.text for b in procedure_breaks(sc, fast, t, x)]
+        assert any("inside 4 nm" in b for b in texts) == broken, texts
+    assert nm_to_ft(sc.procedures.final_approach_height(math.radians(-3.0))) == pytest.approx(2274.0, abs=1.0)

@@ -10,9 +10,10 @@ on CasADi symbols) keeps a limit, less :attr:`~mal_planner.landing.margins.Margi
   distance. Both are step rules; the NLP keeps smooth cones above them that a real aircraft could still fly: above
   the limit's altitude the speed may be higher by what the altitude could buy at equal energy, V^2 <= V_limit^2 +
   2 g (h - h_limit), and beyond the final distance by what the type's idle deceleration in level flight takes off
-  over the way, V^2 <= V_final^2 + 2 a (d - D). An aircraft that starts faster than a limit (a radar state) may
-  instead slow down from its first speed, at half that deceleration once it has had a turn time to settle (the rules
-  allow it to slow down to the limit);
+  over the way, V^2 <= V_final^2 + 2 a (d - D) (+ 2 g (h - H) above the final approach's height H: the rule is for
+  the final approach, not an aircraft overflying the airport). An aircraft that starts faster than a limit (a
+  radar state) may instead slow down from its first speed, at half that deceleration once it has had a turn time to
+  settle (the rules allow it to slow down to the limit);
 * with arrival procedures, the descent rate V sin(gamma) within the rules' and the type's, less the reserve of
   :mod:`mal_planner.landing.profile` (where the constant-speed model bounds the flight-path angle instead).
 """
@@ -115,7 +116,10 @@ class SpeedRules:
         smoothing = DISTANCE_SMOOTHING * rules.final_distance_nm  # smooth at the threshold (the final state)
         distance = ca.sqrt((state[0] - runway[0]) ** 2 + (state[1] - runway[1]) ** 2 + smoothing**2)
         beyond = _below_max(distance - rules.final_distance_nm, 0.0, KNEE_SHARE * rules.final_distance_nm)
-        final = ca.sqrt((keep * rules.final_speed) ** 2 + 2.0 * self.deceleration * beyond)
+        higher = _below_max(state[2] - runway[2] - rules.final_approach_height(float(runway[3])), 0.0,
+                            KNEE_SHARE * rules.final_distance_nm)
+        final = ca.sqrt((keep * rules.final_speed) ** 2 + 2.0 * self.deceleration * beyond +
+                        2.0 * scenario.gravity * higher)
         sink = scenario.descent_rate_limit(aircraft) * (1.0 - RATE_RESERVE) + state[5] * ca.sin(state[3])
         return [*out, (ca.fmax(limit, slowing) - cas) / ref, (ca.fmax(final, slowing) - cas) / ref, sink / ref]
 

@@ -14,6 +14,7 @@ correction: at CDG's 392 ft, a QNH 20 hPa off standard moves FL100 by about 550 
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 
 from pydantic import Field
@@ -43,6 +44,12 @@ class Procedures:
     lower)."""
     turn_away_below_nm: float
     """Below this height above the threshold, the aircraft does not fly away from the threshold."""
+
+    def final_approach_height(self, glide_path_rad: float) -> float:
+        """The height (nm above the threshold) below which an aircraft inside the final distance is on the final
+        approach, where :attr:`final_speed` holds: the glide path's at the final distance plus the minimum height
+        (an aircraft higher up overflies the airport)."""
+        return self.final_distance_nm * math.tan(abs(glide_path_rad)) + self.min_height_nm
 
 
 class ProceduresConfig(Strict):

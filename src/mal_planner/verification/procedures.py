@@ -51,7 +51,9 @@ def procedure_breaks(scenario: Scenario, aircraft: Aircraft, t: np.ndarray, x: n
         course = float(scenario.runway_state[4])
         past = (x[:, 0] - scenario.runway_state[0]) * np.cos(course) + \
             (x[:, 1] - scenario.runway_state[1]) * np.sin(course) > 0.0
-        found += [(what, k, airspeed) for what, k in _speeds(rules, cas, altitude, distance)]
+        on_final = (distance < rules.final_distance_nm) & \
+            (height < rules.final_approach_height(float(scenario.runway_state[3])))
+        found += [(what, k, airspeed) for what, k in _speeds(rules, cas, altitude, distance, on_final)]
         found += [(what, k, True) for what, k in _vertical(rules, perf, tas * np.sin(x[:, 3]), x[:, 2]) +
                   _profile(rules, height, distance, past)]
     return [Break(f"{aircraft.callsign} ({perf.type_code}): {what} at t={t[k]:.1f} s", float(t[k]), kept)
@@ -63,9 +65,11 @@ def _first(bad: np.ndarray) -> int | None:
     return int(hits[0]) if hits.size else None
 
 
-def _speeds(rules: Procedures, cas: np.ndarray, altitude: np.ndarray, distance: np.ndarray) -> list[tuple[str, int]]:
-    """Below the speed-limit altitude at most the limit, or the speed it arrived with while it slows down; inside
-    the final distance at most the final speed."""
+def _speeds(rules: Procedures, cas: np.ndarray, altitude: np.ndarray, distance: np.ndarray,
+            on_final: np.ndarray) -> list[tuple[str, int]]:
+    """Below the speed-limit altitude at most the limit, or the speed it arrived with while it slows down; on the
+    final approach (inside the final distance, below :meth:`Procedures.final_approach_height`) at most the final
+    speed."""
     found = []
     slowing = np.minimum.accumulate(cas)
     low = altitude < rules.speed_limit_below_nm
@@ -73,7 +77,7 @@ def _speeds(rules: Procedures, cas: np.ndarray, altitude: np.ndarray, distance: 
         found.append((f"{nm_per_s_to_kt(cas[k]):.0f} kt CAS at {nm_to_ft(altitude[k]):.0f} ft (limit "
                       f"{nm_per_s_to_kt(rules.speed_limit):.0f} kt below {nm_to_ft(rules.speed_limit_below_nm):.0f} "
                       "ft)", k))
-    if (k := _first((distance < rules.final_distance_nm) & (cas > rules.final_speed))) is not None:
+    if (k := _first(on_final & (cas > rules.final_speed))) is not None:
         found.append((f"{nm_per_s_to_kt(cas[k]):.0f} kt CAS {distance[k]:.2f} nm from the threshold (limit "
                       f"{nm_per_s_to_kt(rules.final_speed):.0f} kt inside {rules.final_distance_nm:g} nm)", k))
     return found
