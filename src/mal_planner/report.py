@@ -66,8 +66,10 @@ def _trajectory(result: PlanResult, columns: dict) -> dict:
 
 
 def _limits(result: PlanResult, callsign: str) -> dict:
-    lim = result.scenario.aircraft_by_callsign(callsign).limits
-    return {"n_h": list(lim.n_h), "n_v": list(lim.n_v), "bank_angle_max": lim.bank_angle_max}
+    ac = result.scenario.aircraft_by_callsign(callsign)
+    lim = ac.limits
+    thrust = {"n_x": list(lim.n_x)} if "n_x" in ac.dynamics.control_names else {}
+    return {"n_h": list(lim.n_h), "n_v": list(lim.n_v), "bank_angle_max": lim.bank_angle_max, **thrust}
 
 
 def sequence_document(result: PlanResult) -> dict | None:

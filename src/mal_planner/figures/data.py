@@ -143,7 +143,8 @@ class PlanView:
 def _limits(doc: dict | None) -> ControlLimits:
     if not doc:
         return ControlLimits()
-    return ControlLimits(tuple(doc["n_h"]), tuple(doc["n_v"]), float(doc["bank_angle_max"]))
+    return ControlLimits(tuple(doc["n_h"]), tuple(doc["n_v"]), float(doc["bank_angle_max"]),
+                         tuple(doc.get("n_x", (0.0, 0.0))))
 
 
 def _initial(callsign: str, doc: dict) -> Trajectory:

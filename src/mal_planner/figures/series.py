@@ -20,6 +20,7 @@ SERIES = {
     "z": ("z (nm)", 2, 1.0),
     "gamma": ("flight-path angle (deg)", 3, 180.0 / np.pi),
     "heading": ("heading (deg)", 4, 180.0 / np.pi),
+    "airspeed": ("true airspeed (kt)", 5, 3600.0),
 }
 HIGHLIGHTED_PAIRS = 8
 """Separation figure: the pairs that come closest get a colour and a legend entry, the rest are grey."""
@@ -85,9 +86,12 @@ def figure_series(view: PlanView, colors: dict[str, str], key: str, initial: boo
 
 
 def figure_states(view: PlanView, colors: dict[str, str]):
-    """x, y, z, flight-path angle and heading against time (thesis Figures 6-3 to 6-7), phases shaded."""
+    """x, y, z, flight-path angle and heading against time (thesis Figures 6-3 to 6-7), phases shaded; and the
+    airspeed of airspeed-model plans."""
     keys = ("x", "y", "z", "gamma", "heading")
-    fig, axs = plt.subplots(len(keys), 1, figsize=(style.WIDTH_IN, 9.5), sharex=True)
+    if view.aircraft and all(a.trajectory.states.shape[1] > SERIES["airspeed"][1] for a in view.aircraft):
+        keys += ("airspeed",)
+    fig, axs = plt.subplots(len(keys), 1, figsize=(style.WIDTH_IN, 1.9 * len(keys)), sharex=True)
     for ax, key in zip(axs, keys, strict=True):
         draw_series(ax, view, colors, key)
     axs[-1].set_xlabel("time (s)")
@@ -100,25 +104,30 @@ def figure_states(view: PlanView, colors: dict[str, str]):
 
 
 def figure_controls(view: PlanView, colors: dict[str, str]):
-    """Bank angle and load factors of every aircraft against their limits (thesis Figures 6-8 to 6-13)."""
-    fig, axs = plt.subplots(3, 1, figsize=(style.WIDTH_IN, 7.0), sharex=True)
+    """Bank angle and load factors of every aircraft against their limits (thesis Figures 6-8 to 6-13); the
+    longitudinal one of airspeed-model plans."""
+    thrust = bool(view.aircraft) and all(a.trajectory.controls is not None and a.trajectory.controls.shape[1] > 2
+                                         for a in view.aircraft)
+    fig, axs = plt.subplots(3 + thrust, 1, figsize=(style.WIDTH_IN, 7.0 + 2.3 * thrust), sharex=True)
     same = len({a.limits for a in view.aircraft}) == 1
     for a in view.aircraft:
         tr, c = a.trajectory, colors[a.callsign]
         if tr.controls is None:
             continue
         n_h, n_v = tr.controls[:, 0], tr.controls[:, 1]
-        for ax, vals in zip(axs, (np.degrees(bank_angle(n_h, n_v)), n_h, n_v), strict=True):
+        series = (np.degrees(bank_angle(n_h, n_v)), n_h, n_v, *([tr.controls[:, 2]] if thrust else []))
+        for ax, vals in zip(axs, series, strict=True):
             ax.plot(tr.t, vals, color=c, lw=1.1)
     limit_sets = [(None, view.aircraft[0].limits)] if same else [(a.callsign, a.limits) for a in view.aircraft]
     for cs, lim in limit_sets:
         c = style.REQUIRED_COLOR if cs is None else colors[cs]
         bank = np.degrees(lim.bank_angle_max)
-        for ax, (lo, hi) in zip(axs, ((-bank, bank), lim.n_h, lim.n_v), strict=True):
+        for ax, (lo, hi) in zip(axs, ((-bank, bank), lim.n_h, lim.n_v, *([lim.n_x] if thrust else [])), strict=True):
             for v in (lo, hi):
                 ax.axhline(v, color=c, ls="--", lw=1.0, alpha=0.9)
-    for ax, label in zip(axs, ("bank angle (deg)", "n_h (horizontal load factor)", "n_v (vertical load factor)"),
-                         strict=True):
+    labels = ("bank angle (deg)", "n_h (horizontal load factor)", "n_v (vertical load factor)",
+              "n_x ((thrust - drag) / weight)")
+    for ax, label in zip(axs, labels[:len(axs)], strict=True):
         shade_phases(ax, view)
         ax.set_ylabel(label)
     axs[-1].set_xlabel("time (s)")
