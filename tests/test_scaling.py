@@ -39,7 +39,8 @@ def test_screening_keeps_only_the_pairs_that_come_close() -> None:
     # The same check on "solved" samples: an unconstrained pair that came close is reported.
     t = np.linspace(0.0, 100.0, 11)
     x = np.hstack([g.state_at(t) for g in guesses])
-    close = close_unconstrained(layout, [(t, x), (t, x[:, 5:]), (t, x[:, 10:])], [set(), set(), set()], 0.3)
+    close = close_unconstrained(layout, [(t, x), (t, x[:, 5:]), (t, x[:, 10:])], [set(), set(), set()], 0.3,
+                                [5, 5, 5])
     assert close[0] == {(0, 1)}
 
 
