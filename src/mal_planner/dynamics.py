@@ -73,6 +73,8 @@ class DynamicsModel:
     name: ClassVar[str] = "point_mass"
     state_names: ClassVar[tuple[str, ...]] = STATE_NAMES
     control_names: ClassVar[tuple[str, ...]] = CONTROL_NAMES
+    variable_airspeed: ClassVar[bool] = False
+    """True where the airspeed is a state (and n_x a control): :class:`AirspeedModel`."""
 
     @property
     def n_states(self) -> int:
@@ -210,6 +212,7 @@ class AirspeedModel(DynamicsModel):
     name: ClassVar[str] = "point_mass_airspeed"
     state_names: ClassVar[tuple[str, ...]] = AIRSPEED_STATE_NAMES
     control_names: ClassVar[tuple[str, ...]] = AIRSPEED_CONTROL_NAMES
+    variable_airspeed: ClassVar[bool] = True
 
     def airspeed(self, state: Any) -> Any:
         return state[5]

@@ -68,7 +68,7 @@ def _trajectory(result: PlanResult, columns: dict) -> dict:
 def _limits(result: PlanResult, callsign: str) -> dict:
     ac = result.scenario.aircraft_by_callsign(callsign)
     lim = ac.limits
-    thrust = {"n_x": list(lim.n_x)} if "n_x" in ac.dynamics.control_names else {}
+    thrust = {"n_x": list(lim.n_x)} if ac.dynamics.variable_airspeed else {}
     return {"n_h": list(lim.n_h), "n_v": list(lim.n_v), "bank_angle_max": lim.bank_angle_max, **thrust}
 
 

@@ -64,7 +64,7 @@ class AircraftGuess:
         u[:, 1] = np.clip(u[:, 1], max(limits.n_v[0], 1e-3), limits.n_v[1])
         cap = np.tan(limits.bank_angle_max) * u[:, 1]
         u[:, 0] = np.clip(u[:, 0], np.maximum(-cap, limits.n_h[0]), np.minimum(cap, limits.n_h[1]))
-        if "n_x" in aircraft.dynamics.control_names:  # hold the airspeed, or change it as a scheduled guess does
+        if aircraft.dynamics.variable_airspeed:  # hold the airspeed, or change it as a scheduled guess does
             gamma = np.interp(t, self.t, self.states[:, 3])
             rate = np.zeros_like(t)
             if self.states.shape[1] > 5 and len(self.t) > 1:
@@ -177,7 +177,7 @@ def scheduled_guess(scenario: Scenario, aircraft: Aircraft, guess: AircraftGuess
     """An airspeed-model aircraft's guess re-timed along its path at the nominal speed schedule of the sequencer
     (:func:`~mal_planner.sequencing.timing.nominal_speeds`, scaled to land at the guess's landing time), with that
     airspeed as its sixth column; other guesses unchanged."""
-    if "airspeed" not in aircraft.dynamics.state_names or scenario.procedures is None or len(guess.t) < 2:
+    if not aircraft.dynamics.variable_airspeed or scenario.procedures is None or len(guess.t) < 2:
         return guess
     steps = np.linalg.norm(np.diff(guess.states[:, :3], axis=0), axis=1)
     along = np.concatenate([[0.0], np.cumsum(steps)])

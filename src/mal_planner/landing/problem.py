@@ -336,7 +336,7 @@ of :mod:`mal_planner.landing.speeds` keep the envelope)."""
 
 def _speed_box(ac: Aircraft) -> tuple[float, ...]:
     """(lower, upper) of an airspeed state (nm/s); () for a constant-speed model."""
-    if "airspeed" not in ac.dynamics.state_names:
+    if not ac.dynamics.variable_airspeed:
         return ()
     perf = performance_of(ac.type_code)
     return SPEED_BOX[0] * min(ac.speed, perf.final_approach_cas.low), SPEED_BOX[1] * max(ac.speed, perf.vmo)

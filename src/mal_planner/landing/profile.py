@@ -42,7 +42,7 @@ def gamma_bounds(scenario: Scenario, aircraft: Aircraft, default: float) -> tupl
     limit = scenario.descent_rate_limit(aircraft)
     if limit is None:
         return -default, default
-    if "airspeed" in aircraft.dynamics.state_names:  # the rate depends on the airspeed: a row of its own
+    if aircraft.dynamics.variable_airspeed:  # the rate depends on the airspeed: a row of its own
         return -default, 0.0
     return -math.asin(min(1.0, limit * (1.0 - RATE_RESERVE) / aircraft.speed)), 0.0
 

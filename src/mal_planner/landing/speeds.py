@@ -82,7 +82,7 @@ class SpeedRules:
     @classmethod
     def of(cls, scenario: Scenario, aircraft: Aircraft, share: float) -> SpeedRules | None:
         """The rows of ``aircraft`` (None: its model's airspeed is constant)."""
-        if "airspeed" not in aircraft.dynamics.state_names:
+        if not aircraft.dynamics.variable_airspeed:
             return None
         perf = performance_of(scenario.type_of(aircraft))
         state = aircraft.state0

@@ -135,7 +135,7 @@ def build_scenario(config: ScenarioConfig, source: str = "<scenario>") -> Scenar
         limits = ac.limits.to_limits() if ac.limits else (
             config.limits.to_limits() if "limits" in config.model_fields_set else dyn.default_limits)
         type_code = _known_type(ac.aircraft_type, source, f"aircraft[{i}].aircraft_type")
-        if "n_x" in dyn.control_names:  # the airspeed model: its thrust and drag from the type's performance
+        if dyn.variable_airspeed:  # the airspeed model: its thrust and drag from the type's performance
             thrust = performance_of(type_code or (config.procedures.aircraft_type if config.procedures else None))
             limits = replace(limits, n_x=(thrust.longitudinal.low, thrust.longitudinal.high))
         aircraft.append(Aircraft(ac.callsign, state0, dyn, limits, ac.wake_category, ac.landing_time,

@@ -93,7 +93,7 @@ def nominal_speeds(scenario: Scenario, aircraft: Aircraft, to_go_nm: np.ndarray)
     """The airspeed (nm/s) of :func:`flight_time`'s schedule with ``to_go_nm`` left to the threshold."""
     rules = scenario.procedures
     to_go = np.asarray(to_go_nm, float)
-    if "airspeed" not in aircraft.dynamics.state_names or rules is None:
+    if not aircraft.dynamics.variable_airspeed or rules is None:
         return np.full(to_go.shape, aircraft.speed)
     landing = performance_of(scenario.type_of(aircraft)).final_approach_cas.default
     final = max(min(rules.final_speed, aircraft.speed), landing)
@@ -109,7 +109,7 @@ def nominal_speeds(scenario: Scenario, aircraft: Aircraft, to_go_nm: np.ndarray)
 def length_for_time(scenario: Scenario, aircraft: Aircraft, seconds: float) -> float:
     """The length (nm) :func:`flight_time` flies in ``seconds`` (its inverse, by bisection: it grows with the
     length)."""
-    if "airspeed" not in aircraft.dynamics.state_names or scenario.procedures is None or seconds <= 0.0:
+    if not aircraft.dynamics.variable_airspeed or scenario.procedures is None or seconds <= 0.0:
         return max(seconds, 0.0) * aircraft.speed
     lo, hi = 0.0, seconds * aircraft.speed
     for _ in range(50):
@@ -126,7 +126,7 @@ def fastest_dynamics(scenario: Scenario, aircraft: Aircraft) -> DynamicsModel:
     """``aircraft``'s model at the fastest airspeed it may fly (for bounds that prove): its constant one, or an
     airspeed-model aircraft's first airspeed or its type's VMO as a true airspeed where it is, if faster."""
     dyn = aircraft.dynamics
-    if "airspeed" not in dyn.state_names:
+    if not dyn.variable_airspeed:
         return dyn
     vmo = float(tas_of_cas(performance_of(scenario.type_of(aircraft)).vmo,
                            max(float(aircraft.position[2]) + scenario.elevation_nm, 0.0)))
@@ -158,7 +158,7 @@ def energy_distance(scenario: Scenario, aircraft: Aircraft, reserve: float = 0.0
     later). ``reserve``: the share of the idle deceleration left unused.
     """
     dyn = aircraft.dynamics
-    if "airspeed" not in dyn.state_names or aircraft.limits.n_x[0] >= 0.0:
+    if not dyn.variable_airspeed or aircraft.limits.n_x[0] >= 0.0:
         return 0.0
     landing = float(tas_of_cas(performance_of(scenario.type_of(aircraft)).final_approach_cas.high,
                                float(scenario.runway_state[2]) + scenario.elevation_nm))

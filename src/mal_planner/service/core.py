@@ -326,6 +326,6 @@ def _check_models(scenario: Scenario) -> None:
     """The service's holds, re-anchoring and radar tracks are written for the constant-speed models: an
     airspeed-model aircraft stops the start (``mal-plan`` plans it)."""
     for ac in scenario.aircraft:
-        if "airspeed" in ac.dynamics.state_names:
+        if ac.dynamics.variable_airspeed:
             raise InvalidInput(f"{scenario.source}: aircraft {ac.callsign}: model {ac.dynamics.name!r} is not run by "
                                "the planning service yet (mal-plan plans it); use point_mass")

@@ -19,7 +19,7 @@ def chord_error_bound(aircraft, t: np.ndarray) -> float:
     within dt^2 a / 8 of its chord over a step dt.
     """
     lim = aircraft.limits
-    along = 1.0 + max(abs(lim.n_x[0]), abs(lim.n_x[1])) if "n_x" in aircraft.dynamics.control_names else 0.0
+    along = 1.0 + max(abs(lim.n_x[0]), abs(lim.n_x[1])) if aircraft.dynamics.variable_airspeed else 0.0
     a_max = aircraft.dynamics.gravity * math.hypot(max(abs(lim.n_v[0] - 1.0), lim.n_v[1] + 1.0),
                                                    max(abs(lim.n_h[0]), abs(lim.n_h[1])), along)
     dt = float(np.max(np.diff(t))) if len(t) > 1 else 0.0
