@@ -144,15 +144,12 @@ def test_the_optimizer_slows_an_arrival_down_to_its_final_approach_speed() -> No
     assert any("inside 4 nm" in r for r in kept.verification.reasons)
 
 
-def test_the_service_says_it_does_not_run_the_airspeed_model_yet() -> None:
-    """A bad start-up setting stops the start with one line naming the aircraft and the model."""
-    from mal_planner.errors import InvalidInput
-    from mal_planner.service.core import PlanningService
-    from mal_planner.service.rules import ServiceRules
+def test_the_bluesky_closed_loop_says_it_flies_constant_speed_plans_only() -> None:
+    """A bad start-up setting stops the start with one line naming the aircraft (before BlueSky starts)."""
+    from mal_planner.closedloop.bluesky_sim import BlueSkySimulator
 
-    with pytest.raises(InvalidInput, match=r"aircraft FAST: model 'point_mass_airspeed' is not run by the planning"):
-        PlanningService(fast(), ServiceRules())
-    PlanningService(fast("point_mass"), ServiceRules())  # the constant-speed model runs
+    with pytest.raises(ValueError, match=r"aircraft FAST: the BlueSky closed loop flies constant-speed plans only"):
+        BlueSkySimulator(fast())
 
 
 def test_the_sequencer_times_an_arrival_that_slows_down_and_loses_its_energy() -> None:

@@ -14,6 +14,7 @@ import numpy as np
 
 from mal_planner import jsonio
 from mal_planner.errors import outcome_code
+from mal_planner.performance import cas_of_tas, performance_of
 from mal_planner.pipeline import PlanResult
 from mal_planner.scenario import Scenario
 from mal_planner.units import nm_per_s_to_kt, nm_to_ft
@@ -37,7 +38,18 @@ def _scenario(result: PlanResult) -> dict:
     return {"name": sc.name, "source": sc.source, "airspace": sc.airspace.tolist(),
             "runway": sc.runway_state.tolist(), "separation_nm": sc.separation_nm,
             "obstacles": [asdict(ob) for ob in sc.obstacles], "gates": [asdict(g) for g in sc.gates],
-            "geo_frame": None if sc.geo_frame is None else sc.geo_frame.describe(), "wind": wind_summary(sc)}
+            "geo_frame": None if sc.geo_frame is None else sc.geo_frame.describe(), "wind": wind_summary(sc),
+            "elevation_nm": sc.elevation_nm, "procedures": _procedures(sc)}
+
+
+def _procedures(sc: Scenario) -> dict | None:
+    """The speed and height rules the profile figure draws (planner units: nm, nm/s CAS); None without any."""
+    pr = sc.procedures
+    if pr is None:
+        return None
+    return {"speed_limit": pr.speed_limit, "speed_limit_below_nm": pr.speed_limit_below_nm,
+            "final_speed": pr.final_speed, "final_distance_nm": pr.final_distance_nm,
+            "min_height_nm": pr.min_height_nm}
 
 
 def wind_summary(sc: Scenario) -> dict:
@@ -58,7 +70,11 @@ def wind_summary(sc: Scenario) -> dict:
 def _trajectory(result: PlanResult, columns: dict) -> dict:
     """A trajectory's columns, with ``lat_deg``, ``lon_deg``, ``alt_ft`` per sample when the scenario is on the
     Earth."""
-    frame = result.scenario.geo_frame
+    sc = result.scenario
+    if "airspeed" in columns:  # the airspeed model: its calibrated airspeed at its pressure altitude as well
+        altitude = sc.elevation_nm + np.asarray(columns["z"], float)
+        columns = {**columns, "cas": cas_of_tas(np.asarray(columns["airspeed"], float), altitude).tolist()}
+    frame = sc.geo_frame
     if frame is None:
         return columns
     lat, lon, alt = frame.to_geodetic(np.column_stack([columns["x"], columns["y"], columns["z"]]))
@@ -69,6 +85,11 @@ def _limits(result: PlanResult, callsign: str) -> dict:
     ac = result.scenario.aircraft_by_callsign(callsign)
     lim = ac.limits
     thrust = {"n_x": list(lim.n_x)} if ac.dynamics.variable_airspeed else {}
+    kind = result.scenario.type_of(ac)
+    if kind is not None and ac.dynamics.variable_airspeed:
+        perf = performance_of(kind)
+        thrust |= {"type": kind, "vmo": perf.vmo, "final_approach_cas": [perf.final_approach_cas.low,
+                                                                          perf.final_approach_cas.high]}
     return {"n_h": list(lim.n_h), "n_v": list(lim.n_v), "bank_angle_max": lim.bank_angle_max, **thrust}
 
 

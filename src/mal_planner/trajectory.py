@@ -91,8 +91,14 @@ class Trajectory:
         phase = np.asarray(data["phase"], int) if "phase" in data else None
         return cls(callsign, np.asarray(data["t"], float), states, controls, phase)
 
+
+AIRSPEED_COLUMN = 10
+"""Where a :class:`Reference`'s table holds the airspeed (after the states, velocities and rates)."""
+
+
 class Reference:
-    """A plan to fly: positions and angles by time, sampled with one search per query."""
+    """A plan to fly: positions and angles by time, sampled with one search per query; the airspeed too where the
+    states carry it (a sixth column: the airspeed model's plans, and the holds and vectors drawn at an airspeed)."""
 
     def __init__(self, t: np.ndarray, states: np.ndarray) -> None:
         t = np.asarray(t, float)
@@ -105,7 +111,22 @@ class Reference:
         velocity = np.gradient(states[:, :3], t, axis=0)
         rates = np.gradient(states[:, 3:5], t, axis=0)
         self.t = t
-        self.table = np.column_stack([states, velocity, rates])  # p(3), gamma, heading, v(3), gamma', heading'
+        # p(3), gamma, heading, v(3), gamma', heading' [, airspeed]
+        self.table = np.column_stack([states[:, :5], velocity, rates, states[:, 5:6]])
+
+    @property
+    def has_airspeed(self) -> bool:
+        return self.table.shape[1] > AIRSPEED_COLUMN
+
+    def states(self, width: int) -> np.ndarray:
+        """The plan's states with ``width`` columns (5; 6 with the airspeed, which the plan must carry)."""
+        if width > 5 and not self.has_airspeed:
+            raise ValueError("this plan carries no airspeed")
+        return self.table[:, [0, 1, 2, 3, 4, AIRSPEED_COLUMN][:width]]
+
+    def airspeed(self, t: float) -> float | None:
+        """The planned airspeed at ``t`` (nm/s; its first or last outside the plan), None where it carries none."""
+        return float(np.interp(t, self.t, self.table[:, AIRSPEED_COLUMN])) if self.has_airspeed else None
 
     @property
     def start(self) -> float:

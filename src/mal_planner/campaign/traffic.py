@@ -40,7 +40,9 @@ import numpy as np
 import yaml
 
 from mal_planner.campaign.metrics import ray_clearance_nm
+from mal_planner.dynamics import AirspeedModel
 from mal_planner.obstacles import Superquadric
+from mal_planner.performance import DEFAULT_TYPE
 from mal_planner.profiles import PROFILES, THESIS, TrafficProfile
 from mal_planner.scenario import Scenario, ScenarioError, parse_scenario
 
@@ -49,6 +51,9 @@ LAYOUTS = ("wall", "no-fly-zones")
 LANDING_TIME_MODES = ("free", "fixed")
 ATTEMPTS = 200
 
+FLYABLE_MODEL = AirspeedModel.name
+"""``mal-traffic --flyable``: every aircraft flies the airspeed model, under the default procedures of
+:data:`~mal_planner.performance.DEFAULT_TYPE` (the traffic names no types)."""
 WAKE_MODES = ("none", "mixed")
 """``mal-traffic --wake``: none (no categories, no wake minima: the files as before) or mixed."""
 WAKE_TABLE = "icao"
@@ -88,6 +93,8 @@ class TrafficSpec:
     """A key of :data:`PROFILES`."""
     wake: str = "none"
     """A value of :data:`WAKE_MODES`: none, or mixed (categories drawn by :data:`WAKE_SHARES`)."""
+    flyable: bool = False
+    """Airliners: the airspeed model and the default arrival procedures (the same draws otherwise)."""
 
     @property
     def numbers(self) -> TrafficProfile:
@@ -99,7 +106,8 @@ class TrafficSpec:
         text = (f"--aircraft {n0 if n0 == n1 else f'{n0}-{n1}'} --seed {self.seed} --layout {self.layout} "
                 f"--landing-times {self.landing_times} --airspace-nm {space}")
         text = text if self.profile == "thesis" else f"{text} --profile {self.profile}"
-        return text if self.wake == "none" else f"{text} --wake {self.wake}"
+        text = text if self.wake == "none" else f"{text} --wake {self.wake}"
+        return f"{text} --flyable" if self.flyable else text
 
 
 @dataclass(frozen=True)
@@ -300,6 +308,8 @@ def _document(name: str, draw: _Draw, aircraft: list[dict[str, float]], airspace
                                  "heading_deg": _r(a["heading"], 1), "speed": _r(a["speed"], 5)}
         if draw.wake:
             entry["wake_category"] = draw.wake[i]
+        if draw.spec.flyable:
+            entry["model"] = FLYABLE_MODEL
         if landing is not None:
             entry["landing_time"] = landing[cs]
         entries.append(entry)
@@ -332,6 +342,8 @@ def _document(name: str, draw: _Draw, aircraft: list[dict[str, float]], airspace
         "limits": {"bank_angle_deg": pr.bank_angle_deg, "n_h": list(pr.n_h), "n_v": list(pr.n_v)}}
     if draw.wake:
         document["sequencing"] = {"strategy": WAKE_STRATEGY}
+    if draw.spec.flyable:
+        document["procedures"] = {"aircraft_type": DEFAULT_TYPE}
     return document
 
 

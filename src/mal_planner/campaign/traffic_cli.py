@@ -56,6 +56,9 @@ def build_parser() -> argparse.ArgumentParser:
                              "bank) or tma (a real terminal area: 45 nm across, 3 nm separation, 90 s landing "
                              "spacing, 30 deg bank, glide paths) (default: %(default)s)")
     shares = ", ".join(f"{c} {100 * share:g} %%" for c, share in WAKE_SHARES.items())  # %% : argparse formats help
+    parser.add_argument("--flyable", action="store_true",
+                        help="airliners: every aircraft flies the airspeed model (point_mass_airspeed) under the "
+                             "default arrival procedures (procedures: {aircraft_type: A320}); the same draws")
     parser.add_argument("--wake", choices=WAKE_MODES, default="none",
                         help=f"none: no wake categories (the files as before); mixed: each aircraft draws an ICAO "
                              f"category ({shares}) and the file asks for the {WAKE_TABLE} wake minima and the "
@@ -83,7 +86,7 @@ def main(argv: list[str] | None = None) -> int:
         spec = TrafficSpec(aircraft=args.aircraft, seed=args.seed, layout=args.layout,
                            landing_times=args.landing_times,
                            airspace_nm=tuple(args.airspace_nm) if args.airspace_nm else None, profile=args.profile,
-                           wake=args.wake)
+                           wake=args.wake, flyable=args.flyable)
         args.out.mkdir(parents=True, exist_ok=True)
         for index in range(args.count):
             generated = generate_one(spec, index)

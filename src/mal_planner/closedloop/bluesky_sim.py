@@ -75,6 +75,10 @@ class BlueSkySimulator(FlightSimulator):
         options = options or SimOptions()
         if options.wind.gust_sigma > 0.0:
             raise ValueError("BlueSky flies a steady wind: no gusts (FlightSimulator has them)")
+        variable = [a.callsign for a in scenario.aircraft if a.dynamics.variable_airspeed]
+        if variable:
+            raise ValueError(f"aircraft {variable[0]}: the BlueSky closed loop flies constant-speed plans only "
+                             "(the airspeed model: the FlightSimulator, or the mal-plan export)")
         super().__init__(scenario, options, t0)
         self.frame = frame or scenario.geo_frame or DEFAULT_FRAME
         self.bs = start_bluesky(workdir)

@@ -17,6 +17,11 @@ where the aircraft should be at each moment. The law, per aircraft and control s
    ``T_a``, converted to load factors by the model's equations and clipped to the aircraft's load-factor
    and bank limits.
 
+An aircraft of the airspeed model also sets n_x: the airspeed that flies the plan's ground velocity in the measured
+wind at its closest point, raised or lowered by the lateness (the clock minus that point's time) over
+:data:`SPEED_TIME_PER_POSITION_TIME` position times, by at most :data:`SPEED_SHARE`, with the plan's own speed change
+as feedforward: it takes out an along-track error by speed, as controllers ask aircraft to.
+
 The time constants are fractions of the scenario's turn time T (the time to turn one radian at the bank
 limit; :mod:`mal_planner.scales`): T_a = T/4 and T_p = T/2 (a cross-track error then decays with damping
 0.71), so the same law flies the thesis's box and a terminal area. Without a plan the aircraft holds its heading
@@ -38,6 +43,10 @@ ATTITUDE_TIME_PER_TURN_TIME = 0.25
 """T_a / T: how fast heading and flight-path-angle errors are taken out."""
 # T_p / T: how fast position errors are taken out (T_a / T_p = 1/2: damping 1 / (2 sqrt(1/2)) = 0.71); the service's
 # prediction of the traffic flies with the same.
+SPEED_TIME_PER_POSITION_TIME = 2.0
+"""An airspeed-model aircraft takes out an along-track error (its lateness) by speed over this many position times."""
+SPEED_SHARE = 0.05
+"""... by at most this share of the plan's airspeed (7 kt at 150 kt: a controller's speed adjustments are 10 kt)."""
 SEARCH_TURN_TIMES = 1.0
 """How far from the clock the closest point of the plan is searched, in turn times: along-track errors are seconds,
 and a plan that loops comes back near itself only after 2 pi turn times."""
@@ -73,17 +82,18 @@ def clip_to_limits(n_h: float, n_v: float, limits: ControlLimits) -> tuple[float
 
 
 def guidance_controls(model: DynamicsModel, limits: ControlLimits, gains: GuidanceGains, state: np.ndarray,
-                      wind: np.ndarray, reference: Reference | None, t: float, lead_s: float = 0.0
-                      ) -> tuple[float, float]:
-    """Load factors (n_h, n_v) that track ``reference`` at time ``t``, or hold heading and level off without one.
+                      wind: np.ndarray, reference: Reference | None, t: float, lead_s: float = 0.0) -> np.ndarray:
+    """Controls (n_h, n_v[, n_x]) that track ``reference`` at time ``t``, or hold heading and level off (and the
+    airspeed) without one.
 
     ``wind`` is the horizontal wind the aircraft measures now (nm/s). ``lead_s``: the feedforward rates are the
     reference's this much later, which makes up for a first-order lag of that time constant between the
     commanded and the flown load factors (to first order in the lag).
     """
-    v, g = model.speed, model.gravity
+    v, g = float(model.airspeed(state)), model.gravity
     gamma, heading = float(state[3]), float(state[4])
     cos_g = math.cos(gamma)
+    speed_rate = 0.0
     if reference is None:
         gamma_rate, heading_rate = -gamma / gains.attitude_s, 0.0
     else:
@@ -96,6 +106,30 @@ def guidance_controls(model: DynamicsModel, limits: ControlLimits, gains: Guidan
         ahead = reference.sample(s + lead_s) if lead_s > 0 else r
         gamma_rate = ahead[8] + (gamma_d - gamma) / gains.attitude_s
         heading_rate = ahead[9] + _wrap(heading_d - heading) / gains.attitude_s
+        if model.variable_airspeed:
+            speed_rate = _speed_rate(reference, gains, wind, s, t, v)
     n_h = v * cos_g * heading_rate / g
     n_v = cos_g + v * gamma_rate / g
-    return clip_to_limits(n_h, n_v, limits)
+    n_h, n_v = clip_to_limits(n_h, n_v, limits)
+    if not model.variable_airspeed:
+        return np.array([n_h, n_v])
+    n_x = math.sin(gamma) + speed_rate / g
+    return np.array([n_h, n_v, min(max(n_x, limits.n_x[0]), limits.n_x[1])])
+
+
+def _air_speed_on(reference: Reference, s: float, wind: np.ndarray) -> float:
+    """The airspeed that flies ``reference``'s ground velocity at its time ``s`` in ``wind``."""
+    return float(np.linalg.norm(reference.sample(s)[5:8] - np.array([wind[0], wind[1], 0.0])))
+
+
+def _speed_rate(reference: Reference, gains: GuidanceGains, wind: np.ndarray, s: float, t: float, v: float) -> float:
+    """V' that keeps an airspeed-model aircraft on the plan's times: the airspeed that flies the plan's ground speed
+    in the measured wind at the plan's point closest to the aircraft, raised (lowered) by the lateness t - s over
+    :data:`SPEED_TIME_PER_POSITION_TIME` position times, within :data:`SPEED_SHARE` of it; reached over an attitude
+    time, with the plan's own speed change as feedforward."""
+    planned = _air_speed_on(reference, s, wind)
+    late = (t - s) / (SPEED_TIME_PER_POSITION_TIME * gains.position_s)
+    wanted = planned * (1.0 + min(max(late, -SPEED_SHARE), SPEED_SHARE))
+    step = gains.attitude_s
+    feedforward = (_air_speed_on(reference, s + step, wind) - planned) / step
+    return feedforward + (wanted - v) / gains.attitude_s

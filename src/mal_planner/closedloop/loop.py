@@ -191,7 +191,7 @@ class ClosedLoop:
         for ac in self.sim.measurements():
             state = self.sim.radar_state(ac)
             tracks[ac.callsign] = Track(ac.callsign, self.sim.t, state if truth else self.noise.apply(state),
-                                        ac.model.speed, ac.wake)
+                                        self.sim.radar_speed(ac), ac.wake)
         return tracks
 
     def _radar_scan(self) -> None:

@@ -100,7 +100,7 @@ class FlightSimulator:
                                      np.asarray(a.state0, float).copy(), a.wake_category)
                          for a in scenario.aircraft]
         for ac in self.aircraft:
-            ac.loads = np.array([0.0, math.cos(ac.state[3])])
+            ac.loads = ac.model.level_flight_control(float(ac.state[3]))
             self._record(ac)
         self.wind = WindField(opts.wind, len(self.aircraft), opts.seed)
         self._runway = np.asarray(scenario.runway_state, float)
@@ -153,8 +153,8 @@ class FlightSimulator:
                 if ac.reference is not None:
                     ac.plans.append(ac.reference)
                     ac.plan_arrivals.append(self.t)
-            command = np.array(guidance_controls(ac.model, ac.limits, self.gains, ac.state, wind[k], ac.reference,
-                                                 self.t, self.options.load_factor_lag_s))
+            command = guidance_controls(ac.model, ac.limits, self.gains, ac.state, wind[k], ac.reference,
+                                        self.t, self.options.load_factor_lag_s)
             ac.loads = command + (ac.loads - command) * decay
             before = ac.state
             ac.state = ac.model.with_wind(wind[k, 0], wind[k, 1]).rk4_step(before, ac.loads, dt)
@@ -202,10 +202,16 @@ class FlightSimulator:
     @staticmethod
     def radar_state(ac: SimAircraft) -> np.ndarray:
         """What a radar reports of ``ac``: its state with the heading in [-pi, pi) (the simulator's is continuous and
-        passes 2 pi in a hold, which the service's gate rightly takes for degrees)."""
-        state = ac.state.copy()
+        passes 2 pi in a hold, which the service's gate rightly takes for degrees): (x, y, z, gamma, heading), its
+        airspeed apart (:meth:`radar_speed`)."""
+        state = ac.state[:5].copy()
         state[4] = (state[4] + math.pi) % (2.0 * math.pi) - math.pi
         return state
+
+    @staticmethod
+    def radar_speed(ac: SimAircraft) -> float:
+        """The airspeed a track of ``ac`` reports (nm/s; air data, as ADS-B's airspeed reports)."""
+        return float(ac.model.airspeed(ac.state))
 
     def measurements(self) -> list[SimAircraft]:
         """The aircraft still flying (their radar tracks; noise is the caller's)."""

@@ -32,6 +32,10 @@ class AircraftView:
     direct_path: np.ndarray
     """(k, 3) shortest path before sequencing."""
     limits: ControlLimits
+    cas: np.ndarray | None = None
+    """The calibrated airspeed (nm/s) at each trajectory sample: the airspeed model's (None: constant speed)."""
+    envelope: dict | None = None
+    """The type's speeds (nm/s CAS): ``type``, ``vmo``, ``final_approach_cas`` [low, high] (plan.json ``limits``)."""
 
 
 @dataclass(frozen=True)
@@ -109,6 +113,10 @@ class PlanView:
     verification_pairs: dict[str, tuple[float, float]] = field(default_factory=dict)
     """pair -> (minimum distance nm, at time s) from the verification."""
     timeline: LandingTimeline = field(default_factory=LandingTimeline)
+    procedures: dict | None = None
+    """plan.json ``scenario.procedures`` (nm, nm/s CAS); None: none."""
+    elevation_nm: float = 0.0
+    """The threshold's elevation: a height plus this is an altitude."""
 
     @property
     def optimized(self) -> bool:
@@ -231,7 +239,7 @@ def plan_view(doc: dict) -> PlanView:
             callsign=a["callsign"], order=int(a["order"]), gate_time=a.get("gate_time_s"),
             landing_time=a.get("landing_time_s"), trajectory=Trajectory.from_dict(a["callsign"], a["trajectory"]),
             initial=_initial(a["callsign"], init), direct_path=np.asarray(init["direct_path"], float).reshape(-1, 3),
-            limits=_limits(a.get("limits"))))
+            limits=_limits(a.get("limits")), cas=_column(a["trajectory"], "cas"), envelope=_envelope(a.get("limits"))))
     aircraft.sort(key=lambda a: a.order)
     ver = doc.get("verification") or {}
     optimizer = doc.get("optimizer") or {}
@@ -248,7 +256,16 @@ def plan_view(doc: dict) -> PlanView:
         phase_names=list(optimizer.get("phases") or []),
         verification_pairs={p["pair"]: (p["min_distance_nm"], p["at_time_s"]) for p in ver.get("pairs", [])},
         timeline=landing_timeline(doc),
+        procedures=sc.get("procedures"), elevation_nm=float(sc.get("elevation_nm") or 0.0),
     )
+
+
+def _column(trajectory: dict, name: str) -> np.ndarray | None:
+    return None if name not in trajectory else np.asarray(trajectory[name], float)
+
+
+def _envelope(limits: dict | None) -> dict | None:
+    return None if not limits or "vmo" not in limits else {k: limits[k] for k in ("type", "vmo", "final_approach_cas")}
 
 
 def load_plan(path: str | Path) -> PlanView:

@@ -2,7 +2,8 @@
 
 The figure families are modules of their own: :mod:`.spatial` (3-D, plan and Y-Z views), :mod:`.series` (states,
 controls and separations against time), :mod:`.sequence` (the landing time line) and :mod:`.overview`; what they
-share (legend, event marks, labels) is :mod:`.annotate`. This module writes the set.
+share (legend, event marks, labels) is :mod:`.annotate`; :mod:`.profiles` draws the airspeed model's speed and
+altitude against the distance to the threshold. This module writes the set.
 """
 
 from __future__ import annotations
@@ -14,13 +15,14 @@ from mal_planner.figures import style
 from mal_planner.figures.annotate import stagger_rows
 from mal_planner.figures.data import PlanView
 from mal_planner.figures.overview import figure_overview
+from mal_planner.figures.profiles import figure_profiles, has_profiles
 from mal_planner.figures.sequence import figure_sequence, gap_label
 from mal_planner.figures.series import figure_controls, figure_separation, figure_series, figure_states
 from mal_planner.figures.spatial import figure_paths_3d, figure_plan, figure_yz
 
 __all__ = [
-    "figure_controls", "figure_overview", "figure_paths_3d", "figure_plan", "figure_separation", "figure_sequence",
-    "figure_series", "figure_states", "figure_yz", "gap_label", "stagger_rows", "write_pngs",
+    "figure_controls", "figure_overview", "figure_paths_3d", "figure_profiles", "figure_plan", "figure_separation",
+    "figure_sequence", "figure_series", "figure_states", "figure_yz", "gap_label", "stagger_rows", "write_pngs",
 ]
 """The figures of the set, and the label rules (:func:`gap_label`, :func:`stagger_rows`) callers use with them."""
 
@@ -45,4 +47,6 @@ def write_pngs(view: PlanView, out_dir: Path) -> list[Path]:
             ("states", lambda: figure_states(view, colors)),
             ("controls", lambda: figure_controls(view, colors)),
         ]
+    if has_profiles(view):
+        jobs.append(("profiles", lambda: figure_profiles(view, colors)))
     return [style.save(make(), out_dir / f"{name}.png") for name, make in jobs]

@@ -51,6 +51,10 @@ class SafetyMargins:
     speed: float = 0.01
     """The share of each speed limit the NLP keeps free (the airspeed model: the calibrated airspeed's polynomial
     between the collocation points, and the verification's finer samples)."""
+    spacing_s: float = 0.0
+    """Added to every pair's landing spacing, in s (the sequencer's and the optimizer's; the verification checks
+    the minimum). Open loop: none. Plans that are flown: the time the replan threshold takes on final
+    (:func:`mal_planner.options.plan.tracking_margins`)."""
 
     def in_nm(self, scales: Scales) -> Margins:
         unit = scales.accuracy_nm

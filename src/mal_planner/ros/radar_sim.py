@@ -89,7 +89,7 @@ class RadarSimulator:
 
     def measurements(self) -> list[tuple[str, np.ndarray, float, str | None]]:
         """``(callsign, state, airspeed nm/s, wake)`` of every aircraft still flying, with position noise."""
-        return [(ac.callsign, self.noise.apply(self.sim.radar_state(ac)), ac.model.speed, ac.wake)
+        return [(ac.callsign, self.noise.apply(self.sim.radar_state(ac)), self.sim.radar_speed(ac), ac.wake)
                 for ac in self.sim.measurements()]
 
 

@@ -102,6 +102,10 @@ class Scenario:
     """The constant wind (w_x, w_y) in nm/s in the local frame (``wind:``); every aircraft's model carries it."""
     procedures: Procedures | None = None
     """The arrival procedures every plan keeps (``procedures:``); None: none (the thesis's airspace)."""
+    spacing_reserve_s: float = 0.0
+    """What the schedule and the optimizer keep beyond each pair's landing spacing (s): the plan options' margin
+    (:attr:`~mal_planner.landing.margins.SafetyMargins.spacing_s`, set by :func:`~mal_planner.options.scenario_for`),
+    not the file's; the minima themselves are unchanged."""
 
     @property
     def elevation_nm(self) -> float:

@@ -23,12 +23,14 @@ class FixedPath:
     t: np.ndarray
     """(n,) times in s from the plan's start, increasing."""
     states: np.ndarray
-    """(n, 5) x, y, z, flight-path angle, heading; the path between samples is their straight chord (as flown)."""
+    """(n, 5) x, y, z, flight-path angle, heading (and the airspeed: the aircraft's model's states); the path
+    between samples is their straight chord (as flown)."""
     landing_time: float | None
     """When it lands on this path (s from the plan's start); None: it does not land on it (a hold, a vector)."""
 
     def __post_init__(self) -> None:
-        if len(self.t) < 2 or np.any(np.diff(self.t) <= 0) or self.states.shape != (len(self.t), 5):
+        width = self.aircraft.dynamics.n_states
+        if len(self.t) < 2 or np.any(np.diff(self.t) <= 0) or self.states.shape != (len(self.t), width):
             raise ValueError(f"{self.callsign}: a fixed path needs at least two states at increasing times")
 
     @property
@@ -43,11 +45,11 @@ class FixedPath:
     def cut(cls, aircraft: Aircraft, t: np.ndarray, states: np.ndarray, start: float, lands: bool) -> FixedPath | None:
         """The part of a path (times ``t`` on any clock) from ``start`` on, with times from ``start``: None when
         it ends by then. ``lands``: the path ends on the runway (a plan), else it does not land (a fallback)."""
-        t, states = np.asarray(t, float), np.asarray(states, float)[:, :5]
+        t, states = np.asarray(t, float), np.asarray(states, float)[:, :aircraft.dynamics.n_states]
         if t[-1] <= start:
             return None
         after = t > start
-        first = np.array([np.interp(start, t, states[:, k]) for k in range(5)])
+        first = np.array([np.interp(start, t, column) for column in states.T])
         times = np.concatenate([[start], t[after]]) - start
         path = np.vstack([first, states[after]])
         return cls(aircraft, times, path, float(times[-1]) if lands else None)

@@ -203,8 +203,9 @@ def landing_spacing(scenario: Scenario, leader: Aircraft, follower: Aircraft) ->
 def planned_spacing(scenario: Scenario, leader: Aircraft, follower: Aircraft) -> float:
     """:func:`landing_spacing`, with a wake table plus :data:`SPACING_MARGIN_TURN_TIMES`: what the schedule and
     the optimizer keep, so that the verification's wake check (no tolerance) never finds a pair a round-off short
-    of its minimum. Without one, today's times exactly (the verification's spacing check has a tolerance)."""
-    spacing = landing_spacing(scenario, leader, follower)
+    of its minimum. Without one, today's times exactly (the verification's spacing check has a tolerance). Plus the
+    scenario's :attr:`~mal_planner.scenario.Scenario.spacing_reserve_s` (plans that are flown)."""
+    spacing = landing_spacing(scenario, leader, follower) + scenario.spacing_reserve_s
     return spacing if scenario.wake == "none" else spacing + Scales.of(scenario).seconds(SPACING_MARGIN_TURN_TIMES)
 
 

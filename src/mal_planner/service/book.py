@@ -247,5 +247,12 @@ class PlanBook:
             state = then[:5].copy()
             state[:3] += tr.state[:3] - now[:3]
             state[3:5] += tr.state[3:5] - now[3:5]
-            out[cs] = Track(cs, at, state, tr.speed, tr.wake)
+            out[cs] = Track(cs, at, state, _speed_then(ref, tr.speed, s0, s0 + at - tr.stamp), tr.wake)
         return out
+
+
+def _speed_then(ref: Reference, speed: float, now: float, then: float) -> float:
+    """A track's airspeed ``speed`` at the instruction's time ``now``, carried to its time ``then``: changed as the
+    instruction's airspeed changes (an airspeed-model plan slows down), the same where it carries none."""
+    planned_now, planned_then = ref.airspeed(now), ref.airspeed(then)
+    return speed if planned_now is None or planned_then is None else speed + planned_then - planned_now

@@ -19,7 +19,6 @@ from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
-from mal_planner.errors import InvalidInput
 from mal_planner.obstacles import Superquadric
 from mal_planner.options import PlanOptions, scenario_for
 from mal_planner.scales import Scales
@@ -55,7 +54,6 @@ class PlanningService:
                  flown: bool = False) -> None:
         """``scenario``: what the service knows of the airspace and the aircraft; ``flown``: the plans are flown
         by aircraft the service watches (plans then keep the margins of flown plans)."""
-        _check_models(scenario)
         self._lock = threading.RLock()
         self.scenario = scenario
         self.rules = rules
@@ -320,12 +318,3 @@ class PlanningService:
 
 
 __all__ = ["PlanRequest", "PlanningService"]
-
-
-def _check_models(scenario: Scenario) -> None:
-    """The service's holds, re-anchoring and radar tracks are written for the constant-speed models: an
-    airspeed-model aircraft stops the start (``mal-plan`` plans it)."""
-    for ac in scenario.aircraft:
-        if ac.dynamics.variable_airspeed:
-            raise InvalidInput(f"{scenario.source}: aircraft {ac.callsign}: model {ac.dynamics.name!r} is not run by "
-                               "the planning service yet (mal-plan plans it); use point_mass")

@@ -45,6 +45,14 @@ def radar_wake(base: Scenario, category: str | None) -> str | None:
     return category if category in categories(base.wake) else None
 
 
+def _model_start(known: Aircraft, state: np.ndarray, speed: float) -> dict:
+    """A known aircraft's initial state (and model) from a track's ``state`` and airspeed: an airspeed-model
+    aircraft starts at the track's airspeed; a constant-speed one keeps the scenario's."""
+    if not known.dynamics.variable_airspeed:
+        return {"state0": state}
+    return {"state0": np.append(state, speed), "dynamics": replace(known.dynamics, speed=float(speed))}
+
+
 @dataclass(frozen=True)
 class PlanInputs:
     """The scenario to plan (initial states at ``plan_start``) and the aircraft left out (with reasons)."""
@@ -89,7 +97,8 @@ def build_plan_scenario(base: Scenario, tracks: Mapping[str, Track], plan_start:
         def shifted(t: float | None) -> float | None:  # the scenario's times count from the first radar stamp
             return None if t is None else t - landing_shift
 
-        candidate = replace(known, state0=state, wake_category=radar_wake(base, known.wake_category or tr.wake),
+        wake = radar_wake(base, known.wake_category or tr.wake)
+        candidate = replace(known, **_model_start(known, state, tr.speed), wake_category=wake,
                             landing_time=shifted(known.landing_time), target_time=shifted(known.target_time),
                             latest_time=shifted(known.latest_time))
         leaving = vertical_escape_problem(base, candidate)

@@ -123,7 +123,8 @@ def fly_legs(state: np.ndarray, speed: float, legs: list[Leg | Orbit], level: fl
     tt = table[:, 0]
     z, gamma = level_profile(float(state[2]), level, speed, tt)
     heading = float(state[4]) + np.unwrap(table[:, 3] - float(state[4]))
-    return Reference(tt + t0, np.column_stack([table[:, 1], table[:, 2], z, gamma, heading]))
+    airspeed = np.full(len(tt), speed)
+    return Reference(tt + t0, np.column_stack([table[:, 1], table[:, 2], z, gamma, heading, airspeed]))
 
 
 def holding_pattern(state: np.ndarray, speed: float, radius: float, *, right: bool, straight_s: float, level: float,

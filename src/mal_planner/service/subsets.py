@@ -38,7 +38,7 @@ def fixed_paths(scenario: Scenario, instructions: Mapping[str, Reference], flyin
     paths = {}
     for aircraft in scenario.aircraft:
         ref = instructions.get(aircraft.callsign)
-        path = None if ref is None else FixedPath.cut(aircraft, ref.t, ref.table[:, :5], start,
+        path = None if ref is None else FixedPath.cut(aircraft, ref.t, ref.states(aircraft.dynamics.n_states), start,
                                                        lands=aircraft.callsign in flying)
         if path is None:
             return None
