@@ -148,3 +148,38 @@ def test_the_profile_figure_draws_calibrated_airspeeds_and_the_rules(tmp_path) -
     np.testing.assert_allclose(speeds, nm_per_s_to_kt(a.cas))
     style.save(fig, tmp_path / "profiles.png")
     assert (tmp_path / "profiles.png").stat().st_size > 10_000
+
+
+SHORT_FINAL = """
+name: short-final
+runway: {position: [0.0, 0.0, 0.0], flight_path_angle_deg: -3.0, heading_deg: -90.0}
+airspace: {x: [-20.0, 20.0], y: [-5.0, 25.0], z: [0.0, 2.0]}
+aircraft:
+  - {callsign: SHORT, position: [0.01, 0.8, 0.0425], flight_path_angle_deg: -3.0, heading_deg: -90.5,
+     speed: 0.0389, model: point_mass_airspeed}
+  - {callsign: WIDE, position: [5.0, 12.0, 0.6], flight_path_angle_deg: 0.0, heading_deg: -90.0, speed: 0.0556,
+     model: point_mass_airspeed}
+separation: {distance_nm: 3.0, landing_spacing_s: 90.0, max_landing_spacing_s: 180.0}
+limits: {bank_angle_deg: 30.0, n_h: [-1.0, 1.0], n_v: [0.7, 1.3]}
+procedures: {aircraft_type: A320}
+"""
+
+
+def test_an_aircraft_on_short_final_flies_straight_in() -> None:
+    """0.8 nm out on the centreline at 140 kt (CDG 12:32: EJU875P really landed 22 s later): not routed back out
+    through the final approach fix, no turn margin in its slot, so it lands in about 21 s, verified (it was sent away
+    from the runway and back, which the rules refuse)."""
+    from mal_planner.initializer.approach import direction, established
+    from mal_planner.pipeline import plan
+    from mal_planner.scenario import scenario_from_text
+
+    sc = scenario_from_text(SHORT_FINAL)
+    rw = sc.runway_state
+    final = direction(float(rw[3]), float(rw[4]))
+    assert established(sc.aircraft[0], rw[:3], final) == pytest.approx(0.8)
+    assert established(sc.aircraft[1], rw[:3], final) is None  # 5 nm off the centreline's cone
+    result = plan(sc)
+    assert result.verified, result.verification.reasons
+    flight = 0.8 / sc.aircraft[0].speed
+    assert result.initial.schedule.times["SHORT"] == pytest.approx(flight, abs=1.0)  # before: through the fix, 9 s
+    assert result.landing_times()["SHORT"] == pytest.approx(flight, abs=2.0)          # of margin on top

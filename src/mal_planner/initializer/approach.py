@@ -7,7 +7,7 @@ IPOPT's ``Infeasible_Problem_Detected`` from such guesses). Here every path ends
 can fly, in turn radii R of that aircraft:
 
 * the **final approach**: the last ``FINAL_RADII`` R straight in along the runway's heading and flight-path
-  angle (from the final approach fix F);
+  angle (from the final approach fix F; an aircraft already established on the final inside F flies straight in);
 * through a **gate**, for an aircraft still ahead of it: ``GATE_RADII`` R straight along the gate's heading
   before and after the hole (entry E, hole point H, exit X), H the point of the hole's central part that
   makes the straight path start -> H -> F shortest.
@@ -30,6 +30,9 @@ from mal_planner.sequencing.schedule import FINAL_RADII
 
 GATE_RADII = 1.0
 """Straight flight before and after a gate's hole, in turn radii (thesis: 0.3 nm)."""
+ESTABLISHED_DEG = 15.0
+"""An aircraft inside the final approach fix, this close to the centreline (seen from the threshold) and to the
+runway's course, is established on the final (an ILS's localizer captures within about 35 deg; half-scale is 1.25)."""
 HOLE_SAMPLES = 9
 HOLE_CORE = 0.8
 """The hole points tried lie in this central share of the hole's width (away from the wall's rounded edges)."""
@@ -46,6 +49,8 @@ class Approach:
     """One aircraft's route to the runway: ``points`` (K, 3), the last one the threshold."""
 
     points: np.ndarray
+    established: bool = False
+    """Already on the extended centreline (:func:`established`): straight in, no turn to leave time for."""
 
     @property
     def first(self) -> np.ndarray:
@@ -79,17 +84,35 @@ def _free_point(checker: CollisionChecker, anchor: np.ndarray, step: np.ndarray,
     return None
 
 
+def established(aircraft: Aircraft, runway: np.ndarray, final_dir: np.ndarray) -> float | None:
+    """How far (nm) before the threshold ``aircraft`` flies on the extended centreline, None if it does not: within
+    :data:`ESTABLISHED_DEG` of it seen from the threshold, heading along the runway's course within as much. Such an
+    aircraft flies straight in, with no turn to leave time for: scheduled with the turn margin, JAL45 at CDG 14:24,
+    1.6 nm out and really landing 41 s later, was given 50 s and flew away from the runway to lose the time; and one
+    inside the final approach fix is not routed back out through it (EJU875P at 12:32, 0.8 nm out: 59 s)."""
+    course = final_dir[:2] / max(float(np.linalg.norm(final_dir[:2])), 1e-300)
+    to_runway = runway[:2] - np.asarray(aircraft.position, float)[:2]
+    along = float(np.dot(to_runway, course))
+    lateral = abs(float(course[0] * to_runway[1] - course[1] * to_runway[0]))
+    off = (float(aircraft.state0[4]) - math.atan2(course[1], course[0]) + math.pi) % (2.0 * math.pi) - math.pi
+    limit = math.radians(ESTABLISHED_DEG)
+    return along if along > 0.0 and lateral <= along * math.tan(limit) and abs(off) <= limit else None
+
+
 def approach_for(scenario: Scenario, aircraft: Aircraft, checker: CollisionChecker) -> Approach:
     """The route of ``aircraft`` (see the module docstring); parts that are not free are left out."""
     radius = level_turn_radius(aircraft)
     runway = np.asarray(scenario.runway_state[:3], float)
     final_dir = direction(float(scenario.runway_state[3]), float(scenario.runway_state[4]))
+    on_final = established(aircraft, runway, final_dir)
+    if on_final is not None and on_final <= FINAL_RADII * radius:
+        return Approach(np.array([runway]), established=True)
     fix = _free_point(checker, runway, final_dir, FINAL_RADII * radius)
     tail = [runway] if fix is None else [fix, runway]
     gate = scenario.gates[0] if scenario.gates else None
     ahead = 0.0 if gate is None else float(gate.signed_distance(aircraft.position))
     if gate is None or ahead <= 0.0:
-        return Approach(np.array(tail))
+        return Approach(np.array(tail), established=on_final is not None)
     step = direction(gate.flight_path_angle, gate.heading)
     along = min(GATE_RADII * radius, 0.5 * ahead)
     start = aircraft.position

@@ -260,8 +260,9 @@ class Sequencer:
         n = len(scenario.aircraft)
         self._where = f"landing schedule, {n} of {n} planned"
         self._legs.deadline.check()
-        schedule = make_schedule(scenario, earliest_landing_times(scenario, direct),
-                                 scales.seconds(self.landing_margin_turn_times))
+        margin = scales.seconds(self.landing_margin_turn_times)  # none for an aircraft straight in: no turn to time
+        margins = {cs: 0.0 if route.established else margin for cs, route in routes.items()}
+        schedule = make_schedule(scenario, earliest_landing_times(scenario, direct), margins)
         log.info("schedule: %s", ", ".join(f"{cs} {schedule.times[cs]:.1f} s" for cs in schedule.order))
         stretcher = Stretcher(self._legs, self, scenario, checker, scales)
         trajectories = self._sequenced(stretcher, schedule, routes, direct, rngs, timings)

@@ -209,19 +209,22 @@ def planned_spacing(scenario: Scenario, leader: Aircraft, follower: Aircraft) ->
     return spacing if scenario.wake == "none" else spacing + Scales.of(scenario).seconds(SPACING_MARGIN_TURN_TIMES)
 
 
-def sequencing_problem(scenario: Scenario, earliest: Mapping[str, float], margin_s: float) -> SequencingProblem:
+def sequencing_problem(scenario: Scenario, earliest: Mapping[str, float], margin_s: float | Mapping[str, float]
+                       ) -> SequencingProblem:
     """The scenario's landings as an aircraft landing problem (:mod:`mal_planner.sequencing`).
 
-    A free aircraft may land from its turn-aware earliest time plus ``margin_s`` on; its target is the
-    scenario's ``target_time``, else that earliest time; its latest time the scenario's ``latest_time``, else none;
-    each second early or late costs its ``cost_early`` / ``cost_late`` (defaults 0 and 1: the total delay). A fixed
-    landing time is a window of one instant (the scenario's times win; :func:`check_request` checks them against
-    each other). Each pair keeps :func:`planned_spacing`; two fixed aircraft need none from the sequencer. A window
-    that no landing can meet is refused by the sequencer, naming the aircraft."""
+    A free aircraft may land from its turn-aware earliest time plus ``margin_s`` (one for all, or per callsign) on;
+    its target is the scenario's ``target_time``, else that earliest time; its latest time the scenario's
+    ``latest_time``, else none; each second early or late costs its ``cost_early`` / ``cost_late`` (defaults 0 and
+    1: the total delay). A fixed landing time is a window of one instant (the scenario's times win;
+    :func:`check_request` checks them against each other). Each pair keeps :func:`planned_spacing`; two fixed
+    aircraft need none from the sequencer. A window that no landing can meet is refused by the sequencer, naming the
+    aircraft."""
     aircraft = scenario.aircraft
     n = len(aircraft)
-    start = np.array([float(ac.landing_time) if ac.landing_time is not None else earliest[ac.callsign] + margin_s
-                      for ac in aircraft])
+    margins = margin_s if isinstance(margin_s, Mapping) else {ac.callsign: margin_s for ac in aircraft}
+    start = np.array([float(ac.landing_time) if ac.landing_time is not None
+                      else earliest[ac.callsign] + margins[ac.callsign] for ac in aircraft])
     target = np.array([s if ac.landing_time is not None or ac.target_time is None else float(ac.target_time)
                        for s, ac in zip(start, aircraft, strict=True)])
     latest = np.array([float(ac.landing_time) if ac.landing_time is not None else
@@ -235,7 +238,7 @@ def sequencing_problem(scenario: Scenario, earliest: Mapping[str, float], margin
                              np.array([ac.cost_late for ac in aircraft], float), separation)
 
 
-def make_schedule(scenario: Scenario, earliest: Mapping[str, float], margin_s: float | None = None
+def make_schedule(scenario: Scenario, earliest: Mapping[str, float], margin_s: float | Mapping[str, float] | None = None
                   ) -> LandingSchedule:
     """Order and landing times from :mod:`mal_planner.sequencing` with the scenario's ``sequencing`` strategy
     (see :func:`sequencing_problem`); ``margin_s`` default: :data:`DEFAULT_MARGIN_TURN_TIMES`.
