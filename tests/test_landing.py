@@ -239,3 +239,12 @@ def test_initial_states_at_the_edge_are_moved_off_it(thesis) -> None:
     assert moved.aircraft_by_callsign("A1").state0[2] == pytest.approx(0.001 + TURN_AWAY_FACTOR * drop, rel=1e-9)
     assert drop > 0 and np.array_equal(moved.aircraft_by_callsign("A1").state0[3:], state[3:])
     assert inside_airspace(thesis, margin_nm=0.001) is thesis
+
+
+def test_a_pass_that_left_every_aircraft_out_is_a_failure_not_an_index_error() -> None:
+    """A sequential replan whose every aircraft is left out (closed loop, 10 airliners, traffic-0006) combined no
+    part: it raised IndexError ("list index out of range"), and the service logged only that."""
+    from mal_planner.landing.aircraft_plans import combine
+
+    result = combine([], 0, None, 0.0, solved=[])
+    assert not result.success and result.status == "no aircraft planned" and result.trajectories == []

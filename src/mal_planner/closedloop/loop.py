@@ -218,6 +218,7 @@ class ClosedLoop:
                 failure = None if result.failure is None else f"{result.failure.outcome}: {result.failure.reason}"
             except Exception as exc:  # the service keeps running: the aircraft keep their plans
                 failure = " ".join(str(exc).split()) or type(exc).__name__
+                log.warning("t=%.1f s: planning raised %s: %s", t_request, type(exc).__name__, failure, exc_info=True)
         wall, cpu = time.perf_counter() - start, time.process_time() - cpu0
         order = []
         if failure is None and result is not None:

@@ -59,9 +59,9 @@ def guess_from(part: LandingResult) -> AircraftGuess:
 def combine(parts: list[LandingResult], n: int, layout, wall: float, solved: list[LandingResult]) -> LandingResult:
     """One result for all aircraft (failed if any part failed or is missing); the effort counts the parts
     ``solved`` now."""
-    success = len(parts) == n and all(p.success for p in parts)
+    success = bool(parts) and len(parts) == n and all(p.success for p in parts)  # none: every aircraft left out
     failed = next((p for p in parts if not p.success), None)
-    status = parts[-1].status if success else (
+    status = parts[-1].status if success else "no aircraft planned" if not parts else (
         f"{failed.trajectories[0].callsign if failed.trajectories else '?'}: {failed.status}" if failed is not None
         else f"time limit after {len(parts)} of {n} aircraft")
     merged = _merged_times(parts)
