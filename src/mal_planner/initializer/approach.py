@@ -31,8 +31,10 @@ from mal_planner.sequencing.schedule import FINAL_RADII
 GATE_RADII = 1.0
 """Straight flight before and after a gate's hole, in turn radii (thesis: 0.3 nm)."""
 ESTABLISHED_DEG = 15.0
-"""An aircraft inside the final approach fix, this close to the centreline (seen from the threshold) and to the
-runway's course, is established on the final (an ILS's localizer captures within about 35 deg; half-scale is 1.25)."""
+"""An aircraft heading along the runway's course within this (a crab in a crosswind included) ..."""
+CENTRELINE_DEG = 5.0
+"""... and within this of the extended centreline seen from the threshold (twice an ILS localizer's full-scale
+deflection) is established on the final: it flies straight in. 3 nm off it 12 nm out (14 deg) it still turns."""
 HOLE_SAMPLES = 9
 HOLE_CORE = 0.8
 """The hole points tried lie in this central share of the hole's width (away from the wall's rounded edges)."""
@@ -86,7 +88,8 @@ def _free_point(checker: CollisionChecker, anchor: np.ndarray, step: np.ndarray,
 
 def established(aircraft: Aircraft, runway: np.ndarray, final_dir: np.ndarray) -> float | None:
     """How far (nm) before the threshold ``aircraft`` flies on the extended centreline, None if it does not: within
-    :data:`ESTABLISHED_DEG` of it seen from the threshold, heading along the runway's course within as much. Such an
+    :data:`CENTRELINE_DEG` of it seen from the threshold, heading along the runway's course within
+    :data:`ESTABLISHED_DEG`. Such an
     aircraft flies straight in, with no turn to leave time for: scheduled with the turn margin, JAL45 at CDG 14:24,
     1.6 nm out and really landing 41 s later, was given 50 s and flew away from the runway to lose the time; and one
     inside the final approach fix is not routed back out through it (EJU875P at 12:32, 0.8 nm out: 59 s)."""
@@ -95,8 +98,8 @@ def established(aircraft: Aircraft, runway: np.ndarray, final_dir: np.ndarray) -
     along = float(np.dot(to_runway, course))
     lateral = abs(float(course[0] * to_runway[1] - course[1] * to_runway[0]))
     off = (float(aircraft.state0[4]) - math.atan2(course[1], course[0]) + math.pi) % (2.0 * math.pi) - math.pi
-    limit = math.radians(ESTABLISHED_DEG)
-    return along if along > 0.0 and lateral <= along * math.tan(limit) and abs(off) <= limit else None
+    aligned = abs(off) <= math.radians(ESTABLISHED_DEG)
+    return along if along > 0.0 and lateral <= along * math.tan(math.radians(CENTRELINE_DEG)) and aligned else None
 
 
 def approach_for(scenario: Scenario, aircraft: Aircraft, checker: CollisionChecker) -> Approach:
