@@ -14,6 +14,7 @@ from mal_planner.closedloop import ClosedLoopOptions, GuidanceGains, SimOptions,
 from mal_planner.closedloop.loop import run_closed_loop
 from mal_planner.closedloop.metrics import measure
 from mal_planner.dynamics import ControlLimits, make_dynamics
+from mal_planner.performance import cas_of_tas
 from mal_planner.service.book import _speed_then
 from mal_planner.service.inputs import build_plan_scenario
 from mal_planner.service.tracks import Track
@@ -76,6 +77,12 @@ def test_the_service_plans_an_airspeed_model_aircraft_from_its_tracked_airspeed(
     inputs = build_plan_scenario(sc, {"FAST": Track("FAST", 0.0, start[:5].copy(), slower, None)}, 0.0, 0.0)
     ac = inputs.scenario.aircraft[0]
     assert ac.state0.shape == (6,) and ac.state0[5] == pytest.approx(slower) and ac.speed == pytest.approx(slower)
+    # a track faster than 250 kt CAS at 3,000 ft (a tail wind nobody measured) starts at the limit less the share
+    too_fast = kt_to_nm_per_s(300.0)
+    inputs = build_plan_scenario(sc, {"FAST": Track("FAST", 0.0, start[:5].copy(), too_fast, None)}, 0.0, 0.0)
+    ac = inputs.scenario.aircraft[0]
+    cas = cas_of_tas(ac.state0[5], ac.state0[2] + sc.elevation_nm)
+    assert cas == pytest.approx(0.99 * kt_to_nm_per_s(250.0)) and ac.speed == pytest.approx(ac.state0[5])
 
 
 def test_the_traffic_generator_writes_airliners() -> None:

@@ -112,6 +112,31 @@ def test_converter_on_synthetic_tracks():
     assert {a["model"] for a in flyable["aircraft"]} == {"point_mass_airspeed"}
 
 
+def test_flyable_airspeed_is_kept_inside_the_envelope_and_the_speed_limit():
+    """Ground speeds taken as airspeeds: a slow one on final (headwind) starts at the type's slowest final approach
+    speed, a fast one below 10,000 ft (tailwind) at the speed limit, both less the optimizer's share; others keep
+    their ground speed."""
+    from mal_planner.landing.margins import SafetyMargins
+    from mal_planner.performance import cas_of_tas, performance_of
+
+    keep = 1.0 - SafetyMargins().speed
+    slowest = performance_of("A320").final_approach_cas.low / keep
+
+    def start(speed_kt: float, alt_ft: float) -> tuple[float, float, str | None]:
+        a = adsb.Arrival(None, "T", 49.0, 2.5, alt_ft, 90.0, -3.0, speed_kt, np.zeros(3))
+        tas_kt, note = adsb.airspeed_estimate(a)
+        return tas_kt, float(cas_of_tas(kt_to_nm_per_s(tas_kt), ft_to_nm(alt_ft))), note
+
+    tas, cas, note = start(120.0, 700.0)
+    assert cas == pytest.approx(slowest, rel=1e-6) and tas > 120.0
+    assert "below the type's slowest final approach" in note
+    tas, cas, note = start(270.0, 4500.0)
+    assert cas == pytest.approx(keep * kt_to_nm_per_s(250.0), rel=1e-6) and tas < 270.0
+    assert note.startswith("T: ground speed 270 kt") and "the rest is wind" in note
+    assert start(200.0, 4500.0)[::2] == (200.0, None)
+    assert start(330.0, 15000.0)[::2] == (330.0, None)  # above 10,000 ft the limit does not hold
+
+
 def test_cdg_scenario_loads_inside_its_airspace():
     sc = load_scenario(SCENARIO)
     assert sc.geo_frame == runway("LFPG", "08R").frame

@@ -18,7 +18,8 @@ and writes
   ``mal-launch --replay`` / ``mal-replay`` play to the planner node;
 * with ``--tracks``, their real tracks from the moment to the landing (CSV, for figures).
 
-The planner's aircraft fly at constant speed without wind: each gets its ground speed at the moment. An
+The planner's aircraft fly without wind: each gets its ground speed at the moment as its airspeed (``--flyable``:
+brought into its type's envelope and the procedures' speed limit, :func:`airspeed_estimate`). An
 aircraft that the scenario cannot hold is left out, with the reason logged: no samples around the moment,
 already landed, outside the terminal area, above its ceiling, or closer than the separation to an aircraft that
 lands before it (the planner needs a separated start).
@@ -53,9 +54,12 @@ from mal_planner.geo.adsb_tracks import (
 )
 from mal_planner.geo.runways import Runway, runways
 from mal_planner.geodesy import GeoFrame
-from mal_planner.performance import DEFAULT_TYPE
+from mal_planner.landing.margins import SafetyMargins
+from mal_planner.landing.speeds import start_airspeed
+from mal_planner.performance import DEFAULT_TYPE, performance_of
 from mal_planner.profiles import TMA, TrafficProfile
-from mal_planner.units import ft_to_nm, nm_to_ft
+from mal_planner.scenario.procedures import ProceduresConfig
+from mal_planner.units import ft_to_nm, kt_to_nm_per_s, nm_per_s_to_kt, nm_to_ft
 
 log = logging.getLogger("mal_planner.geo.adsb")
 
@@ -176,6 +180,24 @@ def _too_close(p: np.ndarray, q: np.ndarray, separation_nm: float, vertical_ft: 
     return bool(np.linalg.norm(p - q) < separation_nm)
 
 
+def airspeed_estimate(a: Arrival) -> tuple[float, str | None]:
+    """The true airspeed (kt) an airspeed-model aircraft starts with: its ground speed (the sample has no wind)
+    brought into what its type may fly and the default procedures allow at its altitude
+    (:func:`~mal_planner.landing.speeds.start_airspeed`, with the optimizer's speed share). The note says what was
+    changed (None: nothing)."""
+    share = SafetyMargins().speed
+    start = start_airspeed(kt_to_nm_per_s(a.speed_kt), ft_to_nm(a.alt_ft), performance_of(DEFAULT_TYPE),
+                           ProceduresConfig().to_procedures(), share)
+    if start.cas == start.measured_cas:
+        return a.speed_kt, None
+    tas_kt = nm_per_s_to_kt(start.tas)
+    why = (f"below the type's slowest final approach plus {share:.0%}" if start.cas == start.low else
+           f"above what it may fly there ({nm_per_s_to_kt(start.high / (1.0 - share)):.0f} kt) less {share:.0%}")
+    return tas_kt, (f"{a.callsign}: ground speed {a.speed_kt:.0f} kt is {nm_per_s_to_kt(start.measured_cas):.0f} kt "
+                    f"CAS at {a.alt_ft:,.0f} ft, {why}: starts at {nm_per_s_to_kt(start.cas):.1f} kt CAS "
+                    f"({tas_kt:.1f} kt true airspeed; the rest is wind)")
+
+
 def scenario_data(sel: Selection, name: str, profile: TrafficProfile = TMA, glide_path_deg: float | None = None,
                   vertical_ft: float | None = None, flyable: bool = False) -> dict:
     """The geodetic scenario (a mapping for YAML) of a selection, with the terminal-area numbers of ``profile``;
@@ -191,6 +213,7 @@ def scenario_data(sel: Selection, name: str, profile: TrafficProfile = TMA, glid
     if vertical_ft is not None:
         separation["vertical_ft"] = vertical_ft
     model = {"model": "point_mass_airspeed"} if flyable else {}
+    speeds = {a.callsign: airspeed_estimate(a)[0] if flyable else a.speed_kt for a in sel.kept}
     data = {
         "name": name,
         "description": f"{len(sel.kept)} real arrivals on {sel.runway.airport} {sel.runway.name} at "
@@ -201,8 +224,8 @@ def scenario_data(sel: Selection, name: str, profile: TrafficProfile = TMA, glid
         "airspace": sel.area.airspace(),
         "aircraft": [{"callsign": a.callsign, "lat": round(a.lat, 7), "lon": round(a.lon, 7),
                       "alt_ft": round(a.alt_ft, 1), "track_deg": round(a.track_deg, 2),
-                      "flight_path_angle_deg": round(a.flight_path_angle_deg, 3), "speed_kt": round(a.speed_kt, 1),
-                      **model}
+                      "flight_path_angle_deg": round(a.flight_path_angle_deg, 3),
+                      "speed_kt": round(speeds[a.callsign], 1), **model}
                      for a in sel.kept],
         "separation": separation,
         "limits": {"bank_angle_deg": profile.bank_angle_deg, "n_h": list(profile.n_h), "n_v": list(profile.n_v)},
@@ -212,8 +235,9 @@ def scenario_data(sel: Selection, name: str, profile: TrafficProfile = TMA, glid
     return data
 
 
-def header_lines(sel: Selection, source: str, command: str) -> list[str]:
-    """The scenario file's comment: where it comes from and who was left out."""
+def header_lines(sel: Selection, source: str, command: str, flyable: bool = False) -> list[str]:
+    """The scenario file's comment: where it comes from, who was left out and (``flyable``) whose airspeed was
+    brought into its type's envelope (:func:`airspeed_estimate`)."""
     rw = sel.runway
     lines = [f"Real arrivals at {rw.airport} {rw.name} at {utc_text(sel.moment_s)}, from ADS-B ({source}), written by",
              f"  {command}",
@@ -226,6 +250,8 @@ def header_lines(sel: Selection, source: str, command: str) -> list[str]:
                  f"{a.callsign} {a.track.landing.time_s - sel.moment_s:.0f} ({a.track.landing.runway.name})"
                  for a in sel.kept)]
     lines += [f"Left out {c}: {r}" for c, r in sel.skipped]
+    if flyable:
+        lines += [note for a in sel.kept if (note := airspeed_estimate(a)[1]) is not None]
     return lines
 
 

@@ -8,7 +8,8 @@ so a replan with new radar states reuses the NLP), continuity of each aircraft b
 gate conditions (in the hole, level, ground track set) at its gate event, runway state at its landing event
 and the landing times (parameters when fixed, spacing constraints when free). Cost, as in the thesis:
 -sum t_obs + sum of integrals of gamma'^2 + heading'^2; with free landing times, +sum t_land instead
-of -sum t_obs (maximising t_obs is only meaningful when t_land is fixed).
+of -sum t_obs (maximising t_obs is only meaningful when t_land is fixed); airspeed-model aircraft are left out of
+-sum t_obs (see :meth:`_Events.mayer`).
 """
 
 from __future__ import annotations
@@ -173,7 +174,10 @@ class _Events:
 
     def mayer(self, E, p):
         layout, n = self.layout, len(self.layout.callsigns)
-        gated = [i for i in range(n) if layout.has_gate_event(i)]
+        # An airspeed-model aircraft's latest gate passage is its fastest way from the gate to the threshold: the
+        # speed cones and the idle bound active all the way, a mesh that does not converge (its Lagrange cost
+        # alone shapes it).
+        gated = [i for i in range(n) if layout.has_gate_event(i) and not self.aircraft[i].dynamics.variable_airspeed]
         if self.fixed_landing_times:
             return -sum(E[layout.event_index("gate", i)].tf for i in gated) if gated else 0.0
         return sum(E[layout.event_index("land", i)].tf for i in range(n))

@@ -21,6 +21,7 @@ on CasADi symbols) keeps a limit, less :attr:`~mal_planner.landing.margins.Margi
 from __future__ import annotations
 
 from dataclasses import dataclass
+from typing import NamedTuple
 
 import casadi as ca
 
@@ -28,6 +29,7 @@ from mal_planner.landing.profile import DISTANCE_SMOOTHING, RATE_RESERVE
 from mal_planner.performance import Performance, cas_of_tas, performance_of, tas_of_cas
 from mal_planner.scales import level_turn_radius
 from mal_planner.scenario import Aircraft, Scenario
+from mal_planner.scenario.procedures import Procedures
 from mal_planner.units import METRES_PER_NM
 
 SLOWING_SHARE = 0.5
@@ -44,6 +46,39 @@ def _below_max(a, b, width: float):
     """A smooth max(a, b), never above it: (a + b + sqrt((a - b)^2 + w^2)) / 2 - w / 2 (equal where a = b, within
     w / 2 of it elsewhere): IPOPT and the mesh refinement dislike kinks."""
     return 0.5 * (a + b + ca.sqrt((a - b) ** 2 + width**2)) - 0.5 * width
+
+
+class StartSpeed(NamedTuple):
+    """A measured airspeed brought into what the aircraft may fly (:func:`start_airspeed`)."""
+
+    tas: float
+    """The true airspeed it starts with (nm/s)."""
+    measured_cas: float
+    """The measurement's calibrated airspeed (nm/s)."""
+    cas: float
+    """The calibrated airspeed it starts with (nm/s; the measured one where that is inside)."""
+    low: float
+    high: float
+    """The calibrated airspeeds it may start between (nm/s)."""
+
+
+def start_airspeed(tas: float, altitude_nm: float, perf: Performance, rules: Procedures | None,
+                   share: float) -> StartSpeed:
+    """The airspeed an airspeed-model aircraft measured at true airspeed ``tas`` (nm/s) at pressure altitude
+    ``altitude_nm`` starts with: between its type's slowest final approach speed and VMO/MMO and at most the
+    procedures' speed limit below its altitude, ``share`` of each kept free (the NLP's speed share). A radar or ADS-B
+    speed outside that is a ground speed in a wind nobody measured, or a measurement's error: a real airliner on
+    final does not fly below its approach speed, nor one at 4,500 ft above 250 kt. Starting inside, the NLP keeps the
+    rules from the first instant (a start above a limit must slow down at once, which a steep descent at idle cannot:
+    its airspeed still rises for a second)."""
+    keep = 1.0 - share
+    cas = float(cas_of_tas(tas, altitude_nm))
+    high = keep * float(perf.max_cas(altitude_nm))
+    if rules is not None and altitude_nm < rules.speed_limit_below_nm:
+        high = min(high, keep * rules.speed_limit)
+    low = perf.final_approach_cas.low / keep
+    kept = min(max(cas, low), high)
+    return StartSpeed(tas if kept == cas else float(tas_of_cas(kept, altitude_nm)), cas, kept, low, high)
 
 
 def cas_expression(tas, altitude_nm):

@@ -139,7 +139,7 @@ def _convert(args: argparse.Namespace, moment: float, rw: Runway, command: str) 
     for out in (args.out, args.bag, args.tracks):
         if out is not None and args.force and out.is_file():
             out.unlink()
-    write_scenario(sel, args.out, data, header_lines(sel, source, command))
+    write_scenario(sel, args.out, data, header_lines(sel, source, command, args.flyable))
     return sel
 
 if __name__ == "__main__":

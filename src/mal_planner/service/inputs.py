@@ -9,7 +9,10 @@ from dataclasses import dataclass, replace
 import numpy as np
 
 from mal_planner.dynamics import make_dynamics
+from mal_planner.landing.margins import SafetyMargins
+from mal_planner.landing.speeds import start_airspeed
 from mal_planner.obstacles import Superquadric
+from mal_planner.performance import performance_of
 from mal_planner.scenario import Aircraft, Scenario
 from mal_planner.sequencing.schedule import slot_after_fixed, start_conflicts, vertical_escape_problem
 from mal_planner.service.tracks import Track
@@ -45,11 +48,14 @@ def radar_wake(base: Scenario, category: str | None) -> str | None:
     return category if category in categories(base.wake) else None
 
 
-def _model_start(known: Aircraft, state: np.ndarray, speed: float) -> dict:
+def _model_start(base: Scenario, known: Aircraft, state: np.ndarray, speed: float) -> dict:
     """A known aircraft's initial state (and model) from a track's ``state`` and airspeed: an airspeed-model
-    aircraft starts at the track's airspeed; a constant-speed one keeps the scenario's."""
+    aircraft starts at the track's airspeed brought into what its type may fly and the procedures allow there
+    (:func:`~mal_planner.landing.speeds.start_airspeed`); a constant-speed one keeps the scenario's."""
     if not known.dynamics.variable_airspeed:
         return {"state0": state}
+    speed = start_airspeed(float(speed), float(state[2]) + base.elevation_nm, performance_of(base.type_of(known)),
+                           base.procedures, SafetyMargins().speed).tas
     return {"state0": np.append(state, speed), "dynamics": replace(known.dynamics, speed=float(speed))}
 
 
@@ -98,7 +104,7 @@ def build_plan_scenario(base: Scenario, tracks: Mapping[str, Track], plan_start:
             return None if t is None else t - landing_shift
 
         wake = radar_wake(base, known.wake_category or tr.wake)
-        candidate = replace(known, **_model_start(known, state, tr.speed), wake_category=wake,
+        candidate = replace(known, **_model_start(base, known, state, tr.speed), wake_category=wake,
                             landing_time=shifted(known.landing_time), target_time=shifted(known.target_time),
                             latest_time=shifted(known.latest_time))
         leaving = vertical_escape_problem(base, candidate)
