@@ -129,6 +129,33 @@ def test_when_one_of_a_pair_cannot_turn_the_other_takes_the_whole_resolution(the
     assert ratio.min() >= 1.0, ratio.min()
 
 
+def test_a_vectored_aircraft_keeps_its_vector_unless_another_heading_is_clearly_clearer(thesis) -> None:
+    """A flies east on a vector, B on a parallel track 1.02 minima to its north: no heading clears by the alert margin
+    (every one starts 1.02 minima away), and none keeps clearly more than A's own, so A keeps it (re-choosing every
+    scan flipped an aircraft between headings and it never turned away). A vector that closes on B is replaced."""
+    from mal_planner.service.fallback import Fallback
+
+    rules = FallbackRules.of(thesis, deviation_nm=0.05)
+    guard, now, speed = Guard(thesis, rules), 0.0, 0.04
+    sep = rules.minima.horizontal_nm
+    track = Track("A", now, np.array([-2.5, 4.5, 0.15, 0.0, 0.0]), speed)
+
+    def vec(heading_deg: float) -> Fallback:
+        ref = vector(track.state, speed, rules.turn_radius(speed), math.radians(heading_deg), level=0.15, t0=now,
+                     duration_s=50.0, step_s=rules.step_s, wind=rules.wind)
+        return Fallback("A", "vector", ref, now, "safety net: clear of B", math.nan)
+
+    times = rules.look_ahead(now)
+    b = _line(now, (-2.5, 4.5 + 1.02 * sep, 0.15), 0.0, speed, 300.0).positions(times)
+    straight, towards = vec(0.0), vec(30.0)
+    kept = guard._feasible_vector(vec(0.0), track, Picture(times, {"A": straight.reference.positions(times), "B": b}),
+                                  now, straight)
+    assert kept is straight
+    new = guard._feasible_vector(vec(0.0), track, Picture(times, {"A": towards.reference.positions(times), "B": b}),
+                                 now, towards)
+    assert new is not towards and new.clearance >= 1.0, new
+
+
 def test_a_hold_that_cannot_fit_leaves_the_box_rather_than_enter_a_no_fly_zone(thesis) -> None:
     """When no hold fits (an aircraft at the airspace's edge beside a no-fly zone), the one chosen may cross the
     box's edge but not a no-fly zone: the key orders no-fly-zone chords before the distance outside."""
