@@ -229,6 +229,29 @@ def test_a_late_plan_is_re_anchored_to_where_the_aircraft_are(first_plan: Closed
     assert isinstance(stale, Stale) and "more than 0.125 nm" in stale.reason
 
 
+def test_an_aircraft_established_on_final_keeps_the_plan_it_flies(first_plan: ClosedLoop) -> None:
+    """A plan that arrives when an aircraft is within one landing spacing of its threshold is handed to the others
+    only: it lands on the plan it flies (new plans seconds before the threshold made missed approaches), and a
+    deviation there asks for no replan."""
+    loop = first_plan
+    result = loop.service.book.current.result
+    service = PlanningService(loop.base, loop.rules, loop.service.options)
+    truth = {a.callsign: Track(a.callsign, 0.0, a.state0.copy(), a.speed) for a in loop.scenario.aircraft}
+    service.finish(service.request("initial plan", 0.0, tracks=truth, lead=False), result, None, 0.0, 2.0)
+    first, landing = min(result.landing_times().items(), key=lambda kv: kv[1])
+    now = landing - 0.8 * loop.scenario.landing_spacing_s  # past the replan interval before the end (7.6 s)
+    before = dict(service.book.flying)
+    for cs, tr in truth.items():
+        state = tr.state.copy()
+        state[:3] = before[cs].position(now) + ([0.0, 0.05, 0.0] if cs == first else 0.0)
+        service.take_track(Track(cs, now, state, tr.speed), "runway", "radar", now, now)
+    assert service.policy.deviations(service.intake.estimates(), service.book.flying).keys() == set(truth) - {first}
+    (again,) = service.finish(service.request("test", now, lead=False), result, None, now, 1.0)
+    assert isinstance(again, Handout) and again.established == (first,)
+    assert first not in again.trajectories and service.book.flying[first] is before[first]
+    assert all(service.book.flying[cs] is not before[cs] for cs in again.trajectories)
+
+
 def test_a_plan_that_would_turn_an_aircraft_out_of_the_airspace_is_stale(thesis) -> None:
     """Re-anchoring moves positions, not headings. A plan east reaching an aircraft that flies west (half way round a
     hold) 0.4 nm from the western edge turns it round: it strays about two turn radii (0.6 nm) and leaves; in the

@@ -250,6 +250,9 @@ class ClosedLoop:
         """What the service decided, done to the simulated aircraft."""
         for event in events:
             if isinstance(event, Handout):
+                if event.established:
+                    log.info("t=%.1f s: %s established on final: keep their plans", event.at,
+                             ", ".join(event.established))
                 for cs in event.trajectories:
                     self.sim.set_plan(cs, self.service.book.flying[cs], event.at)
                     self.instructions.append((event.at, cs, "plan"))

@@ -85,7 +85,11 @@ class PlanPublisher:
                                         self.scenario.geo_frame, request.inputs.left_out)
         if event.lost:
             log.info("aircraft %s lost while planning: not published", ", ".join(event.lost))
-            plan_msg.aircraft = [a for a in plan_msg.aircraft if a.callsign not in event.lost]
+        if event.established:
+            log.info("aircraft %s established on final: keep the paths they fly", ", ".join(event.established))
+        if event.lost or event.established:
+            gone = {*event.lost, *event.established}
+            plan_msg.aircraft = [a for a in plan_msg.aircraft if a.callsign not in gone]
         with self._lock:
             self.plans += 1
             self.last_result, self.plan_msg, self._kept_first = result, plan_msg, None

@@ -2,7 +2,8 @@
 
 A plan arrives (:meth:`PlanBook.arrive`) when its planning ends. It is handed out when it starts
 (:meth:`PlanBook.due`; at once if it started already), re-anchored to where its aircraft are then, unless that is
-unsafe (:mod:`mal_planner.service.reanchor`): then it is stale. Handed out, each of its aircraft flies it; an
+unsafe (:mod:`mal_planner.service.reanchor`): then it is stale. An aircraft established on final by then keeps the
+plan it flies (:func:`~mal_planner.service.rules.established_window_s`). Handed out, each of its aircraft flies it; an
 aircraft that a later plan leaves out (established on final, or left out) flies on along the plan it has. A failed
 replan keeps the plans being flown; after ``kept_plan_expiry_s`` of failures they are withdrawn. An aircraft
 without a plan flies the service's fallback (a hold or the safety net's vector, :meth:`PlanBook.give`). Every time
@@ -13,7 +14,7 @@ from __future__ import annotations
 
 import math
 from collections.abc import Callable, Mapping
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from typing import TYPE_CHECKING
 
 import numpy as np
@@ -23,7 +24,7 @@ from mal_planner.service.conflicts import Minima
 from mal_planner.service.fallback import Fallback
 from mal_planner.service.reanchor import fade_time, reanchored, turn_stray, unsafe_offsets
 from mal_planner.service.request import PlanRequest
-from mal_planner.service.rules import ServiceRules
+from mal_planner.service.rules import ServiceRules, established
 from mal_planner.service.tracks import Track
 from mal_planner.trajectory import Reference, Trajectory
 
@@ -41,6 +42,8 @@ class Handout:
     at: float
     lost: tuple[str, ...] = ()
     """Aircraft of the plan lost while it was planned (not handed out)."""
+    established: tuple[str, ...] = ()
+    """Aircraft of the plan established on final by then: they keep the plans they fly (not handed out)."""
 
 
 @dataclass(frozen=True)
@@ -103,6 +106,9 @@ class PlanBook:
     """The hold or vector of each aircraft that flies no plan."""
     on_handout: Callable[[str, Reference | None, Reference, float], None] | None = None
     """Called per aircraft as it gets a new plan (old plan, new plan, time): the track filter re-anchors on it."""
+    established_s: float = 0.0
+    """An aircraft this close to the end of the plan it flies keeps it (:func:`~mal_planner.service.rules.established`;
+    0: none does)."""
 
     def instruction(self, callsign: str) -> Reference | None:
         """What an aircraft flies now: its plan, else its fallback, else nothing."""
@@ -123,7 +129,7 @@ class PlanBook:
             self.on_handout(cs, old, fallback.reference, now)
         if self.flying.pop(cs, None) is not None and self.current is not None:
             kept = {k: tr for k, tr in self.current.trajectories.items() if k != cs}
-            self.current = Handout(self.current.request, self.current.result, kept, self.current.at, self.current.lost)
+            self.current = replace(self.current, trajectories=kept)
         self.fallbacks[cs] = fallback
 
     def arrive(self, request: PlanRequest, result: PlanResult, now: float, tracked: set[str]) -> list[Event]:
@@ -150,10 +156,15 @@ class PlanBook:
             self.upcoming = [u for u in self.upcoming if u is not entry]  # by identity: results hold arrays
             result, request = entry
             trajectories, lost = self._planned(result, request, tracked)
+            settled = tuple(sorted(cs for cs in trajectories if established(self.flying.get(cs), now,
+                                                                            self.established_s)))
+            trajectories = {cs: tr for cs, tr in trajectories.items() if cs not in settled}
+            if not trajectories:  # every aircraft of the plan is established on final by now: nothing changes
+                continue
             offsets = self._offsets(trajectories, result.start_time, now)
             scales, minima = Scales.of(result.scenario), Minima.of(result.scenario)
             refs = {cs: Reference(tr.t + result.start_time, tr.states) for cs, tr in trajectories.items()}
-            others = None if request.traffic is None else {  # a replan of what changed: clear of the others too
+            others = {cs: self.flying[cs] for cs in settled} if request.traffic is None else {  # clear of the others
                 cs: ref for cs, ref in self.instructions().items() if cs in tracked and cs not in refs}
             strays = {cs: turn_stray(ref, self.instruction(cs), now, level_turn_radius(
                 result.scenario.aircraft_by_callsign(cs))) for cs, ref in refs.items() if cs in offsets}
@@ -167,7 +178,7 @@ class PlanBook:
             moved = {cs: reanchored(tr, offsets[cs], now - result.start_time,
                                     fade_time(scales, now, refs[cs].end)) if cs in offsets else tr
                      for cs, tr in trajectories.items()}
-            events.append(self._hand_out(result, request, now, moved, lost))
+            events.append(self._hand_out(result, request, now, moved, lost, settled))
             unplanned = [cs for cs in result.unplanned if cs in self.flying]
             if unplanned:  # their plans were made with the others' old ones: they hold instead (the guard)
                 events.append(self.withdraw(unplanned, "not in the partial plan handed out"))
@@ -199,7 +210,7 @@ class PlanBook:
         return out
 
     def _hand_out(self, result: PlanResult, request: PlanRequest, now: float, trajectories: dict[str, Trajectory],
-                  lost: tuple[str, ...]) -> Handout:
+                  lost: tuple[str, ...], established: tuple[str, ...] = ()) -> Handout:
         for cs, traj in trajectories.items():
             ref = Reference(traj.t + result.start_time, traj.states)
             if self.on_handout is not None:
@@ -208,7 +219,7 @@ class PlanBook:
             self.fallbacks.pop(cs, None)
         self.kept_since = None
         self.last_arrival = now
-        self.current = Handout(request, result, trajectories, now, lost)
+        self.current = Handout(request, result, trajectories, now, lost, established)
         return self.current
 
     def withdraw(self, callsigns: list[str], why: str) -> Withdrawn:
@@ -218,8 +229,7 @@ class PlanBook:
             self.fallbacks.pop(cs, None)
         if self.current is not None and gone:
             kept = {cs: tr for cs, tr in self.current.trajectories.items() if cs not in gone}
-            self.current = Handout(self.current.request, self.current.result, kept, self.current.at,
-                                   self.current.lost)
+            self.current = replace(self.current, trajectories=kept)
         return Withdrawn(gone, why)
 
     def predicted(self, tracks: Mapping[str, Track], at: float) -> dict[str, Track]:

@@ -29,7 +29,13 @@ from mal_planner.service.inputs import apply_zone, build_plan_scenario
 from mal_planner.service.intake import TrackIntake, Verdict
 from mal_planner.service.policy import ReplanPolicy, wind_change_reason
 from mal_planner.service.request import PlanRequest
-from mal_planner.service.rules import LEAD_PER_LATENCY, ServiceRules, replan_time_limit, service_plan_options
+from mal_planner.service.rules import (
+    LEAD_PER_LATENCY,
+    ServiceRules,
+    established_window_s,
+    replan_time_limit,
+    service_plan_options,
+)
 from mal_planner.service.subsets import joining_traffic, traffic_for
 from mal_planner.service.tracks import Track
 from mal_planner.trajectory import Reference
@@ -63,11 +69,11 @@ class PlanningService:
         self._given_options = options or PlanOptions()
         self.options = service_plan_options(self._given_options, scenario, rules, flown=flown)
         self.book = PlanBook(rules, self._estimate, search_s=Scales.of(scenario).time_s,
-                             follow_nm=0.5 * scenario.separation_nm)
+                             follow_nm=0.5 * scenario.separation_nm, established_s=established_window_s(scenario))
         self.intake = TrackIntake(scenario, rules, plan_of=self.book.instruction)
         self.guard = Guard.of(self._guarded(), rules.deviation_nm)
         self.book.on_handout = self.intake.filter.replanned
-        self.policy = ReplanPolicy(rules)
+        self.policy = ReplanPolicy(rules, established_window_s(scenario))
         self.latency_s = 0.0
         """The latest plan's planning time (a replan starts LEAD_PER_LATENCY times this ahead)."""
         self.epoch: float | None = None

@@ -28,6 +28,7 @@ from mal_planner.service.conflicts import (
     picture,
 )
 from mal_planner.service.fallback import Fallback, FallbackRules, choose_hold, fits_airspace
+from mal_planner.service.rules import established, established_window_s
 from mal_planner.service.safety_net import TRY_TURNS_DEG, displacements, resolution_vectors, turned
 from mal_planner.service.tracks import Track
 
@@ -46,8 +47,6 @@ this share of the fallback margin (in minima) more separation (a terminal area 0
 deviation): re-choosing the clearest heading every scan flipped between headings 30-150 deg apart, so the aircraft
 never turned away (a 20-aircraft run: 31 vectors to T06 in 31 s, and a loss of separation at 0.79 minima where 1.04
 had been predicted before the net acted)."""
-ESTABLISHED_TURN_TIMES = 2.0
-"""An aircraft this close to its plan's end is on final: the net moves the other aircraft of a conflict."""
 
 
 @dataclass
@@ -163,8 +162,8 @@ class Guard:
                 urgent.append(c)
         if not urgent:
             return []
-        final = {cs: ref.end for cs, ref in book.flying.items()
-                 if ref.end - now < self.rules.scales.seconds(ESTABLISHED_TURN_TIMES)}
+        window = established_window_s(self.scenario)  # on final: the net moves the other aircraft of a conflict
+        final = {cs: ref.end for cs, ref in book.flying.items() if established(ref, now, window)}
         headings = {cs: fb.reference.table[-1, 4] for cs, fb in book.fallbacks.items() if fb.kind == "vector"}
         vectors = resolution_vectors(tracks, displacements(urgent, pic, self.rules, now, final), urgent,
                                      self.scenario, self.rules, now, headings)

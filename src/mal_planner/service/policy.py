@@ -8,8 +8,8 @@ In this order, on the radar's clock:
 3. nothing sooner than ``min_interval_s`` after the last plan arrived, a failed one too (the back-off);
 4. an aircraft tracked that flies no plan (new, or left out of the last one);
 5. the aircraft whose filtered track strays farthest from its plan, beyond ``deviation_nm``; an aircraft within
-   ``min_interval_s`` of its plan's end is not checked (a new plan would come too late to help: past its end
-   an aircraft is about to cross the threshold);
+   ``min_interval_s`` of its plan's end, or established on final (``established_s``), is not checked (a new plan
+   would come too late to help, or is not handed to it: it lands on the plan it flies);
 6. the period, ``period_s``.
 
 Changes that come from outside the radar (a no-fly zone, the wind) ask for a plan at once:
@@ -35,8 +35,11 @@ changed replans them with it): they would ask for a replan of their own within t
 class ReplanPolicy:
     """Decides from the rules, the filtered tracks and the plans being flown (it remembers only who strayed)."""
 
-    def __init__(self, rules: ServiceRules) -> None:
+    def __init__(self, rules: ServiceRules, established_s: float = 0.0) -> None:
+        """``established_s``: an aircraft this close to its plan's end is established on final
+        (:func:`~mal_planner.service.rules.established_window_s`)."""
         self.rules = rules
+        self.established_s = established_s
         self.straying: tuple[str, set[str]] | None = None
         """(the reason, the aircraft) when the latest decision was a deviation: the one beyond the threshold and
         those beyond :data:`STRAYING_SHARE` of it; a replan of what changed may serve them."""
@@ -81,11 +84,12 @@ class ReplanPolicy:
 
     def deviations(self, tracks: Mapping[str, Track], flying: Mapping[str, Reference]) -> dict[str, float]:
         """The distance (nm) of each track from its plan at the track's time; aircraft near their plan's end (within
-        ``min_interval_s``) or without a plan are not counted."""
+        ``min_interval_s``, or established on final) or without a plan are not counted."""
         out = {}
+        near_end = max(self.rules.min_interval_s, self.established_s)
         for cs, tr in tracks.items():
             ref = flying.get(cs)
-            if ref is not None and ref.start <= tr.stamp <= ref.end - self.rules.min_interval_s:
+            if ref is not None and ref.start <= tr.stamp <= ref.end - near_end:
                 out[cs] = float(np.linalg.norm(ref.position(tr.stamp) - tr.state[:3]))
         return out
 
