@@ -179,6 +179,25 @@ def test_an_aircraft_starting_at_the_minimum_height_starts_above_the_nlps_floor(
         assert floor <= ft_to_nm(1000.0)
 
 
+def test_the_nlps_floor_keeps_the_minimum_height_a_little_inside_the_final_distance() -> None:
+    """A path that rides the floor bends down at its knee and starts down a little before it (between collocation
+    points, and flown by its controls): the NLP's knee is inside the rules' 4 nm, so that the dip comes where the rules
+    ask nothing (10 airliners, at the rules' knee: 8 of 10 plans dipped 0-1 ft below 1,000 ft 4.0-4.2 nm out and were
+    solved again)."""
+    from mal_planner.landing.profile import floor_height
+
+    sc = real()
+    slow, rules = sc.aircraft[0], sc.procedures
+
+    def floor(distance_nm: float) -> float:  # the runway is at the origin
+        return float(floor_height(sc, slow, distance_nm, 0.0, 1e-3))
+
+    final, minimum = rules.final_distance_nm, rules.min_height_nm
+    assert floor(2.0 * final) == pytest.approx(minimum) and floor(final) == pytest.approx(minimum)
+    assert floor(0.97 * final) == pytest.approx(minimum)
+    assert floor(0.9 * final) < minimum and floor(0.0) < 0.0
+
+
 def test_the_final_speed_holds_on_the_final_approach_not_over_the_airport() -> None:
     """Level across the threshold at 300 kt: at 1,500 ft it is on the final approach and breaks the 180-kt rule; at
     13,000 ft (above the glide path at 4 nm plus the minimum height: 2,270 ft) it overflies the airport and does not."""
