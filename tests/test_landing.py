@@ -248,3 +248,22 @@ def test_a_pass_that_left_every_aircraft_out_is_a_failure_not_an_index_error() -
 
     result = combine([], 0, None, 0.0, solved=[])
     assert not result.success and result.status == "no aircraft planned" and result.trajectories == []
+
+
+def test_flown_plans_pass_a_hole_the_replan_threshold_inside_its_edges_where_it_has_room() -> None:
+    """traffic-0031 of the 20-aircraft set: the hole 3.8 nm wide and 0.175 nm high, the replan threshold 0.15 nm. A
+    flown plan's gate event keeps the threshold inside the wide sides, half the room inside the narrow ones; an
+    open-loop plan only the obstacle and gate margins."""
+    from mal_planner.landing.margins import SafetyMargins
+    from mal_planner.options.plan import tracking_margins
+
+    sc = load_scenario("scenarios/tma_12.yaml")
+    scales = Scales.of(sc)
+    open_loop = SafetyMargins().in_nm(scales)
+    flown = tracking_margins(SafetyMargins(), scales, 0.15, math.radians(30.0)).in_nm(scales)
+    base = open_loop.hole_nm
+    assert flown.hole_nm == pytest.approx(base)
+    assert open_loop.gate_inset_nm(-1.161, 2.653) == pytest.approx(base)
+    assert flown.gate_inset_nm(-1.161, 2.653) == pytest.approx(base + 0.15)
+    assert flown.gate_inset_nm(0.393, 0.568) == pytest.approx(base + 0.5 * (0.0875 - base))
+    assert flown.gate_inset_nm(0.0, 1.5 * base) == pytest.approx(base)  # no room: the open-loop inset

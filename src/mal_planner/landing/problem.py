@@ -360,7 +360,8 @@ def _end_bounds(ctx: _Context, end: Event, i: int, lo: list[float], hi: list[flo
     if end.aircraft == i and end.kind == "gate" and gate is not None:
         flo[gate.axis] = fhi[gate.axis] = gate.position
         for (b_lo, b_hi), ax in zip(gate.bounds, gate.other_axes, strict=True):
-            flo[ax], fhi[ax] = max(flo[ax], b_lo + margins.hole_nm), min(fhi[ax], b_hi - margins.hole_nm)
+            inset = margins.gate_inset_nm(b_lo, b_hi)
+            flo[ax], fhi[ax] = max(flo[ax], b_lo + inset), min(fhi[ax], b_hi - inset)
         flo[3] = fhi[3] = gate.flight_path_angle
         # the gate's heading is a ground track: the state (air) heading is crabbed into the wind
         flo[4] = fhi[4] = _wrap_near(ac.heading_for_track(gate.heading, gate.flight_path_angle), guess_heading)
