@@ -84,3 +84,24 @@ def test_campaign_keys_round_trip_and_the_node_offers_every_ros_option() -> None
     node = NodeParams().plan_options()
     assert node.time_limit_s == 60.0 and node.landing.output_dt == 0.25  # the node's own defaults
     assert node.landing.strategy == "auto" and node.initializer == "multi-rrt"
+
+
+def test_a_tracking_error_sizes_the_margins_of_flown_plans() -> None:
+    """BlueSky's A320 flying an export strays up to 0.28 nm from the plan, with nothing to replan it (CDG 12:56 flew
+    2.997 nm with the closed loop's 0.072-nm threshold): ``--tracking-error`` sizes the margins to what flies them."""
+    from mal_planner.options import resolve_flown
+    from mal_planner.scales import Scales
+    from mal_planner.scenario import load_scenario
+
+    parser = argparse.ArgumentParser()
+    add_arguments(parser)
+    values = values_from_args(parser.parse_args(["--tracking-error", "0.3"]))
+    options = build_plan_options(values)
+    assert options.tracking_margins and options.tracking_threshold_nm == 0.3
+    scenario = load_scenario("scenarios/tma_12.yaml")
+    scales = Scales.of(scenario)
+    flown = resolve_flown(options, scenario).landing.margins.in_nm(scales)
+    default = resolve_flown(build_plan_options({"tracking_margins": True}), scenario).landing.margins.in_nm(scales)
+    assert flown.separation_nm == pytest.approx(0.6)
+    assert default.separation_nm == pytest.approx(2.0 * 10.0 * scales.accuracy_nm)
+    assert not build_plan_options({}).tracking_margins

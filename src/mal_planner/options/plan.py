@@ -82,7 +82,9 @@ def build_plan_options(values: Mapping[str, Any], base: PlanOptions | None = Non
     return replace(base, initializer=v["initializer"], seed=None if v["seed"] is None or v["seed"] < 0 else v["seed"],
                    optimize=v["optimize"], verify=v["verify"], landing=landing, time_limit_s=v["time_limit_s"],
                    refinement_rounds=base.refinement_rounds if v["refine"] else 0, wake_table=v["wake_table"],
-                   sequencing=v["sequencing"], tracking_margins=v["tracking_margins"])
+                   sequencing=v["sequencing"],
+                   tracking_margins=v["tracking_margins"] or v["tracking_threshold_nm"] is not None,
+                   tracking_threshold_nm=v["tracking_threshold_nm"])
 
 
 def _current(option: Option, base: PlanOptions) -> Any:

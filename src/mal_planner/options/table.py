@@ -78,6 +78,11 @@ PLAN_OPTIONS: tuple[Option, ...] = (
            "airspace's bounds left to the aircraft's guidance", flag="--tracking-margins", flag_sets=True,
            flag_help="plan with the closed loop's margins for flown plans (deviation threshold: ten path "
                      "accuracies)", ros="tracking_margins"),
+    Option("tracking_threshold_nm", float, None, "how far the aircraft that fly the plans may stray from them: the "
+           "margins of flown plans are sized to it (implies tracking_margins); none: the closed loop's replan "
+           "threshold, ten path accuracies (a service replans at its own deviation threshold; BlueSky's A320 flying "
+           "an export, with nothing replanning it, strays up to 0.3 nm)", above=0.0, none_as=0.0, unit="nm",
+           flag="--tracking-error", metavar="NM"),
 )
 """Every plan option, once."""
 

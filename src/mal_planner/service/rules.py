@@ -118,9 +118,10 @@ def service_plan_options(options: PlanOptions, scenario: Scenario, rules: Servic
     final (:data:`ESTABLISHED_TURN_TIMES`) are
     left out of replans; with ``flown`` (the plans are flown by aircraft that the service watches) or the options'
     ``tracking_margins``, the margins of flown plans (:func:`~mal_planner.options.tracking_margins`) sized to the
-    deviation threshold."""
+    deviation threshold (or to the options' tracking error, if larger)."""
+    threshold = max(rules.deviation_nm, options.tracking_threshold_nm or 0.0)
     options = replace(options, landed_within_turn_times=max(options.landed_within_turn_times, ESTABLISHED_TURN_TIMES),
-                      tracking_margins=flown or options.tracking_margins, tracking_threshold_nm=rules.deviation_nm,
+                      tracking_margins=flown or options.tracking_margins, tracking_threshold_nm=threshold,
                       partial=True)
     return resolve_flown(options, scenario)
 
