@@ -12,6 +12,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+import yaml
 from dds_support import SRC, dds_env  # noqa: F401  (fixture)
 
 from mal_planner.closedloop import ClosedLoopOptions, FlightSimulator, Reference, SimOptions, WindSpec
@@ -211,6 +212,33 @@ def test_reference_carries_on_along_its_final_line() -> None:
     np.testing.assert_allclose(ref.position(5.0), [0.0, 1.8, 0.1])
     np.testing.assert_allclose(ref.position(30.0), [0.0, 0.8, 0.1])  # 0.04 nm/s on past the end
     np.testing.assert_allclose(ref.position(-5.0), [0.0, 2.0, 0.1])  # before the start: the start
+
+
+def test_an_aircraft_two_turn_times_late_flies_its_plan_by_position_onto_the_threshold() -> None:
+    # A straight-in glide path in a terminal area (turn time 16 s), the aircraft at its start two turn times after
+    # the plan: searched around the clock, the reference ran ahead down the path and the aircraft crossed the
+    # threshold 49 ft below it; followed by its own progress, it flies the path late and lands on it.
+    data = yaml.safe_load((ROOT / "scenarios" / "tma_3.yaml").read_text(encoding="utf-8"))
+    glide, speed, out = math.radians(3.0), 0.05, 8.0
+    data["aircraft"] = [dict(callsign="T01", position=[0.0, out, out * math.tan(glide)], flight_path_angle_deg=-3.0,
+                             heading_deg=-90.0, speed=speed)]
+    data.pop("obstacles", None)
+    scenario = parse_scenario(data, "late")
+    scales = Scales.of(scenario)
+    late = 2.0 * scales.time_s
+    crossing = 0.5 * scales.accuracy_nm  # flown plans cross the threshold at their airspace margin
+    t = np.linspace(0.0, out / (speed * math.cos(glide)), 200) - late
+    along = out - (t + late) * speed * math.cos(glide)
+    states = np.column_stack([0.0 * t, along, crossing + along * math.tan(glide), -glide + 0.0 * t,
+                              -math.pi / 2 + 0.0 * t])
+    sim = FlightSimulator(scenario, SimOptions(seed=1))
+    sim.set_plan("T01", Reference(t, states))
+    sim.advance(t[-1] + late + 30.0)
+    ac = sim.aircraft[0]
+    assert ac.status == "landed", ac.end_note
+    assert ac.end_time == pytest.approx(t[-1] + late, abs=0.1 * scales.time_s)
+    heights = np.array(ac.states)[:, 2]
+    assert heights.min() > 0.0
 
 
 def test_the_track_filter_smooths_radar_noise_against_the_plan_and_keeps_its_estimate_across_replans() -> None:

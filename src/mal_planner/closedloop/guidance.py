@@ -4,7 +4,8 @@ A plan is a time-stamped reference (a ``nav_msgs/Path`` or a :class:`~mal_planne
 where the aircraft should be at each moment. The law, per aircraft and control step:
 
 1. the reference at the plan's point closest to the aircraft (path following: searched within a turn time of
-   the clock): position p_r, ground velocity v_r (the path's own rate of change, so it holds whatever wind the
+   where the aircraft was on the plan a step before, :func:`plan_time`; of the clock for a new plan): position
+   p_r, ground velocity v_r (the path's own rate of change, so it holds whatever wind the
    planner assumed), flight-path angle, heading and their rates. An along-track error (late or early) is kept:
    a constant-airspeed aircraft can take it out only by cutting or stretching the path, which near the runway
    puts it off the centreline; the service replans when it grows (new landing times);
@@ -81,14 +82,31 @@ def clip_to_limits(n_h: float, n_v: float, limits: ControlLimits) -> tuple[float
     return n_h, n_v
 
 
+def plan_time(reference: Reference, state: np.ndarray, t: float, gains: GuidanceGains,
+              progress_s: float | None = None) -> float:
+    """The time of ``reference``'s point closest to the aircraft at ``state``: searched within a turn time of
+    ``progress_s`` (where it was on the plan a step before; None: of the clock ``t``, for a plan just received).
+
+    Searched around the clock, an aircraft more than a turn time late lost its place: the reference ran ahead of it
+    down the glide path and, past the plan's end, collapsed onto the threshold, below which the aircraft levelled
+    off (twenty aircraft in closed loop, traffic-0003: T05 18 s late crossed the threshold 86 ft low; a straight-in
+    plan flown 20 s late crossed it 49 ft low). Around the aircraft's own progress it flies the plan's path late,
+    as an FMS flies its vertical path by position, and the service replans it for the lateness."""
+    if not math.isfinite(gains.search_s):
+        return t
+    return reference.closest_time(state[:3], t if progress_s is None else progress_s, gains.search_s)
+
+
 def guidance_controls(model: DynamicsModel, limits: ControlLimits, gains: GuidanceGains, state: np.ndarray,
-                      wind: np.ndarray, reference: Reference | None, t: float, lead_s: float = 0.0) -> np.ndarray:
+                      wind: np.ndarray, reference: Reference | None, t: float, lead_s: float = 0.0,
+                      s: float | None = None) -> np.ndarray:
     """Controls (n_h, n_v[, n_x]) that track ``reference`` at time ``t``, or hold heading and level off (and the
     airspeed) without one.
 
     ``wind`` is the horizontal wind the aircraft measures now (nm/s). ``lead_s``: the feedforward rates are the
     reference's this much later, which makes up for a first-order lag of that time constant between the
-    commanded and the flown load factors (to first order in the lag).
+    commanded and the flown load factors (to first order in the lag). ``s``: the plan's time to follow
+    (:func:`plan_time`; None: searched around the clock).
     """
     v, g = float(model.airspeed(state)), model.gravity
     gamma, heading = float(state[3]), float(state[4])
@@ -97,7 +115,8 @@ def guidance_controls(model: DynamicsModel, limits: ControlLimits, gains: Guidan
     if reference is None:
         gamma_rate, heading_rate = -gamma / gains.attitude_s, 0.0
     else:
-        s = reference.closest_time(state[:3], t, gains.search_s) if math.isfinite(gains.search_s) else t
+        if s is None:
+            s = plan_time(reference, state, t, gains)
         r = reference.sample(s)
         wanted = r[5:8] + (r[:3] - state[:3]) / gains.position_s
         air = wanted - np.array([wind[0], wind[1], 0.0])

@@ -24,7 +24,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from mal_planner.closedloop.disturbances import WindField, WindSpec
-from mal_planner.closedloop.guidance import GuidanceGains, guidance_controls
+from mal_planner.closedloop.guidance import GuidanceGains, guidance_controls, plan_time
 from mal_planner.dynamics import ControlLimits, DynamicsModel
 from mal_planner.scales import Scales
 from mal_planner.scenario import Scenario
@@ -69,6 +69,8 @@ class SimAircraft:
     """Every plan flown, in order."""
     plan_arrivals: list[float] = field(default_factory=list)
     """When each began to be flown."""
+    progress_s: float | None = None
+    """The time of the plan's point the aircraft was at a step before (path following; None: none yet)."""
 
     @property
     def flying(self) -> bool:
@@ -149,12 +151,14 @@ class FlightSimulator:
             if not ac.flying:
                 continue
             while ac.pending and ac.pending[0][0] <= self.t:
-                ac.reference = ac.pending.pop(0)[1]
+                ac.reference, ac.progress_s = ac.pending.pop(0)[1], None
                 if ac.reference is not None:
                     ac.plans.append(ac.reference)
                     ac.plan_arrivals.append(self.t)
+            if ac.reference is not None:
+                ac.progress_s = plan_time(ac.reference, ac.state, self.t, self.gains, ac.progress_s)
             command = guidance_controls(ac.model, ac.limits, self.gains, ac.state, wind[k], ac.reference,
-                                        self.t, self.options.load_factor_lag_s)
+                                        self.t, self.options.load_factor_lag_s, ac.progress_s)
             ac.loads = command + (ac.loads - command) * decay
             before = ac.state
             ac.state = ac.model.with_wind(wind[k, 0], wind[k, 1]).rk4_step(before, ac.loads, dt)
