@@ -287,6 +287,9 @@ def test_flown_plans_keep_the_replan_threshold_as_separation_margin() -> None:
     assert margins.airspace_nm == pytest.approx(0.5 * Scales.of(scenario).accuracy_nm)
     assert margins.airspace_nm > open_loop.airspace_nm
     assert m_to_ft(nm_to_m(margins.airspace_nm)) < 50.0
+    # the ceiling a whole path accuracy (nothing lies on it; the open loop keeps the airspace margin there too)
+    assert margins.top_nm == pytest.approx(Scales.of(scenario).accuracy_nm)
+    assert open_loop.top_nm == open_loop.airspace_nm
     assert margins.bank_rad == pytest.approx(0.1 * math.radians(45.0))
     # between collocation points a path may enter a fifth of that airspace margin, the rest is the aircraft's stray
     assert margins.airspace_bulge_nm == pytest.approx(0.1 * Scales.of(scenario).accuracy_nm)
@@ -311,6 +314,6 @@ def test_flown_plans_keep_their_airspace_margin_between_collocation_points() -> 
         result = loop.planner.plan(loop.base, reuse=False)
         assert result.verified
         highest[bulge] = max(float(np.max(t.states[:, 2])) for t in result.landing.trajectories)
-    ceiling = scenario.airspace[2, 1] - margins.airspace_nm
-    assert highest[None] > ceiling + 0.5 * margins.airspace_nm  # unchecked: more than half the margin gone
+    ceiling = scenario.airspace[2, 1] - margins.top_nm
+    assert highest[None] > ceiling + 0.5 * margins.airspace_nm  # unchecked: more than half a floor's margin gone
     assert highest[margins.airspace_bulge_nm] <= ceiling + margins.airspace_bulge_nm + 1e-9

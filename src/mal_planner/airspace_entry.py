@@ -62,11 +62,13 @@ def turn_away_nm(ac: Aircraft, velocity: np.ndarray, axis: int, side: int) -> fl
     return radius * (1.0 - math.sqrt(max(0.0, 1.0 - (towards / v_h) ** 2)))
 
 
-def inside_airspace(scenario: Scenario, tolerance_nm: float | None = None, margin_nm: float = 0.0) -> Scenario:
+def inside_airspace(scenario: Scenario, tolerance_nm: float | None = None, margin_nm: float = 0.0,
+                    ceiling_margin_nm: float | None = None) -> Scenario:
     """``scenario`` with its initial positions moved off the airspace's edge (see the module docstring).
 
     Raises ValueError naming the aircraft when one is further out than ``tolerance_nm`` (default: twice the
-    scenario's path accuracy, 0.01 nm in the thesis). ``margin_nm``: the optimizer's airspace margin.
+    scenario's path accuracy, 0.01 nm in the thesis). ``margin_nm``: the optimizer's airspace margin;
+    ``ceiling_margin_nm``: its margin below the ceiling (None: ``margin_nm``).
     """
     scales = Scales.of(scenario)
     if tolerance_nm is None:
@@ -84,9 +86,10 @@ def inside_airspace(scenario: Scenario, tolerance_nm: float | None = None, margi
         velocity = initial_velocity(ac)
         for axis in range(3):
             for side, face in ((-1, lo[axis]), (1, hi[axis])):
-                lingers = -side * velocity[axis] * turn_time < margin_nm  # still within the margin a turn time on
+                margin = ceiling_margin_nm if axis == 2 and side == 1 and ceiling_margin_nm is not None else margin_nm
+                lingers = -side * velocity[axis] * turn_time < margin  # still within the margin a turn time on
                 turn = min(TURN_AWAY_FACTOR * turn_away_nm(ac, velocity, axis, side), tolerance_nm)  # more: bad luck
-                clearance = (margin_nm if lingers else 0.0) + turn
+                clearance = (margin if lingers else 0.0) + turn
                 if side * (position[axis] - face) > -clearance:
                     position[axis] = face - side * min(clearance, 0.5 * (hi[axis] - lo[axis]))
         shift = float(np.max(np.abs(position - ac.position)))

@@ -56,6 +56,9 @@ class SafetyMargins:
     speed: float = 0.01
     """The share of each speed limit the NLP keeps free (the airspeed model: the calibrated airspeed's polynomial
     between the collocation points, and the verification's finer samples)."""
+    ceiling: float | None = None
+    """The ceiling's own margin (None: ``airspace``), for plans that are flown: the floor's is held down by the
+    threshold's crossing height, the ceiling's is not (:func:`mal_planner.options.plan.tracking_margins`)."""
     spacing_s: float = 0.0
     """Added to every pair's landing spacing, in s (the sequencer's and the optimizer's; the verification checks
     the minimum). Open loop: none. Plans that are flown: the time the replan threshold takes on final
@@ -66,7 +69,8 @@ class SafetyMargins:
         return Margins(self.separation * unit, self.obstacle * unit, self.clearance, self.gate * unit,
                        self.airspace * unit, self.bank_rad, self.load_factor,
                        None if self.airspace_bulge is None else self.airspace_bulge * unit,
-                       (self.obstacle + self.zone) * unit, self.speed)
+                       (self.obstacle + self.zone) * unit, self.speed,
+                       None if self.ceiling is None else self.ceiling * unit)
 
 
 @dataclass(frozen=True)
@@ -85,6 +89,13 @@ class Margins:
     """The inflation of obstacles with volume (None: ``obstacle_nm``)."""
     speed_share: float = 0.0
     """:attr:`SafetyMargins.speed`."""
+    ceiling_nm: float | None = None
+    """:attr:`SafetyMargins.ceiling` (None: ``airspace_nm``)."""
+
+    @property
+    def top_nm(self) -> float:
+        """How far below the ceiling plans stay."""
+        return self.airspace_nm if self.ceiling_nm is None else self.ceiling_nm
 
     def inflation_nm(self, bulky: bool) -> float:
         """How much an obstacle's semi-axes are inflated: a thin wall piece by ``obstacle_nm``, one with volume by

@@ -306,7 +306,7 @@ def _phase_bounds(ctx: _Context, k: int, who: list[int], guess_span: tuple[float
     conditions of its event; the load factors a margin inside their limits."""
     layout, gate, margins = ctx.layout, ctx.gate, ctx.margins
     space_lo = ctx.scenario.airspace[:, 0] + margins.airspace_nm
-    space_hi = ctx.scenario.airspace[:, 1] - margins.airspace_nm
+    space_hi = ctx.scenario.airspace[:, 1] - [margins.airspace_nm, margins.airspace_nm, margins.top_nm]
     out = _PhaseBounds()
     for i in who:
         ac, cs = ctx.aircraft[i], layout.callsigns[i]

@@ -29,6 +29,11 @@ dynamics (turn radius and time: guidance, lag, gusts), not by the separation: si
 0.6 nm in a terminal area), the margins of flown plans made the first terminal-area plans infeasible."""
 TRACKING_AIRSPACE_MARGIN = 0.5
 """The airspace margin of flown plans, in path accuracies (see :func:`tracking_margins`)."""
+TRACKING_CEILING_MARGIN = 1.0
+"""The ceiling's margin of flown plans, in path accuracies (a terminal area: 0.0072 nm, 44 ft): the floor's
+(:data:`TRACKING_AIRSPACE_MARGIN`) is held down by the threshold's crossing height, the ceiling's is not. Twenty
+aircraft in closed loop (traffic-0023, 30-m radar noise): a plan handed out at the ceiling's 0.5-accuracy margin to
+an aircraft 0.3 accuracies below it, and the aircraft rose 0.5 accuracies past it, 0.6 m through the ceiling."""
 TRACKING_AIRSPACE_BULGE = 0.1
 """How far, in path accuracies, a flown plan's path may enter its airspace margin between collocation points: the
 other 0.4 are the aircraft's vertical stray (campaigns: up to 0.4). Without the check, a plan level at the ceiling
@@ -113,7 +118,8 @@ def tracking_margins(margins: SafetyMargins, scales: Scales, threshold_nm: float
     thin pieces of walls keep the open-loop margins: inflated by the threshold, their holes would leave no room (a
     0.09-nm hole against 0.05 nm). The airspace keeps :data:`TRACKING_AIRSPACE_MARGIN` path accuracies: plans ride
     the floor and the ceiling, where the flown path strays vertically by the load-factor lag (campaigns: up to 0.4
-    accuracies); the runway lies on the floor, so the threshold is crossed that high (thesis 4.6 m, a terminal area
+    accuracies; the ceiling keeps :data:`TRACKING_CEILING_MARGIN`); the runway lies on the floor, so the threshold
+    is crossed that high (thesis 4.6 m, a terminal area
     29 ft: inside the touchdown window's 0-100 ft). Plans keep :data:`BANK_RESERVE` of the bank limit for the guidance's
     feedback: a plan that turns at the limit onto the threshold leaves none to take out an error there.
     Landings keep the time the threshold takes at ``final_speed`` (nm/s, the slowest ground speed on final) beyond
@@ -125,6 +131,7 @@ def tracking_margins(margins: SafetyMargins, scales: Scales, threshold_nm: float
     return replace(margins, separation=max(margins.separation, 2.0 * threshold_nm / scales.accuracy_nm),
                    zone=max(margins.zone, threshold_nm / scales.accuracy_nm),
                    airspace=max(margins.airspace, TRACKING_AIRSPACE_MARGIN),
+                   ceiling=max(margins.ceiling or margins.airspace, TRACKING_CEILING_MARGIN),
                    airspace_bulge=TRACKING_AIRSPACE_BULGE if margins.airspace_bulge is None else
                    min(margins.airspace_bulge, TRACKING_AIRSPACE_BULGE),
                    bank_rad=max(margins.bank_rad, BANK_RESERVE * bank_limit_rad),

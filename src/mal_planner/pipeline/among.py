@@ -96,7 +96,8 @@ def _prepared(planner: Planner, scenario: Scenario) -> tuple[PlanOptions, Deadli
     deadline = Deadline(opts.time_limit_s)
     scenario = scenario_for(opts, scenario)
     scales = Scales.of(scenario)
-    scenario = inside_airspace(scenario, margin_nm=opts.landing.margins.in_nm(scales).airspace_nm)
+    margins = opts.landing.margins.in_nm(scales)
+    scenario = inside_airspace(scenario, margin_nm=margins.airspace_nm, ceiling_margin_nm=margins.top_nm)
     return opts, deadline, scenario, scales
 
 

@@ -155,8 +155,9 @@ class Planner:
         scenario = scenario_for(opts, scenario)
         self._deadline = deadline = Deadline(opts.time_limit_s)
         self._stopped = None
-        margin = opts.landing.margins.in_nm(Scales.of(scenario)).airspace_nm
-        scenario = self._without_landed(inside_airspace(scenario, margin_nm=margin), start_time)
+        margins = opts.landing.margins.in_nm(Scales.of(scenario))
+        scenario = self._without_landed(inside_airspace(scenario, margin_nm=margins.airspace_nm,
+                                                        ceiling_margin_nm=margins.top_nm), start_time)
         check_request(scenario, opts.landing.margins.in_nm(Scales.of(scenario)).hole_nm)
         timings: dict[str, float] = {}
         last = self.last
