@@ -15,9 +15,10 @@ from mal_planner.closedloop.loop import ClosedLoop, run_closed_loop
 from mal_planner.closedloop.metrics import measure
 from mal_planner.closedloop.simulator import FlightSimulator
 from mal_planner.options import PlanOptions
+from mal_planner.scales import Scales
 from mal_planner.scenario import load_scenario
 from mal_planner.service.book import Handout, Instructed, PlanBook, Stale
-from mal_planner.service.conflicts import Minima, Picture
+from mal_planner.service.conflicts import Minima, Picture, predict
 from mal_planner.service.core import PlanningService
 from mal_planner.service.fallback import FallbackRules, choose_hold, fits_airspace
 from mal_planner.service.guard import Guard
@@ -64,6 +65,27 @@ def test_a_hold_keeps_the_margin_from_everyones_current_plans(thesis) -> None:
     assert first.clearance >= 1.0 + rules.margin
     assert fits_airspace(thesis, hold.reference.positions(np.arange(now, now + 120.0, rules.step_s)), rules.edge_nm)
     assert guard.counts["holds"] == 1 and guard.counts["alerts"] == 0
+
+
+def test_an_aircraft_two_turn_times_late_is_predicted_from_where_it_is_on_its_plan(thesis) -> None:
+    # The guidance flies a late aircraft along its plan from where it is (closedloop.guidance.plan_time); the net's
+    # prediction follows it the same way, scan by scan. Searched around the clock, it started two turn times late
+    # aircraft a turn time ahead of where they were, and predicted them there.
+    turn = Scales.of(thesis).time_s
+    speed, late = 0.04, 2.0 * turn
+    plan = _line(0.0, (-2.0, 4.5, 0.15), 0.0, speed, 200.0)
+    book = PlanBook(ServiceRules(deviation_nm=0.05), lambda cs, ref, t: None, search_s=turn)
+    book.flying["A"] = plan
+    times = np.array([60.0, 90.0])
+    for now in 60.0 - np.arange(45.0)[::-1]:  # the radar sees it every second, on the plan's path, late
+        tracks = {"A": Track("A", now, np.r_[plan.position(now - late), 0.0, 0.0], speed)}
+        at = book.plan_times(tracks)
+    assert at["A"] == pytest.approx(60.0 - late, abs=0.05)
+    settle = 0.5 * turn
+    followed = predict(tracks["A"], plan, times, search_s=turn, settle_s=settle, s0=at["A"])
+    np.testing.assert_allclose(followed, plan.positions(times - late), atol=1e-6)
+    by_clock = predict(tracks["A"], plan, times, search_s=turn, settle_s=settle)
+    assert np.linalg.norm(by_clock[-1] - plan.position(90.0 - late)) > 0.5 * speed * turn
 
 
 def test_a_predicted_conflict_brings_in_the_net_unless_a_plan_comes_in_time(thesis) -> None:

@@ -162,6 +162,14 @@ class Reference:
             out[past] = self.table[-1, :3] + (times[past] - self.t[-1])[:, None] * self.table[-1, 5:8]
         return out
 
+    def follow(self, p: np.ndarray, t: float, window_s: float, last: tuple[float, float] | None = None) -> float:
+        """Where an aircraft at ``p`` is on the plan at time ``t``: :meth:`closest_time` searched within ``window_s``
+        of where it was at the last look moved on by the time since (``last``: that look's time and plan time; None:
+        of ``t``, for a plan just received). Path following keeps its place so: an aircraft more than a window late
+        is still found where it is, not at the window's edge ahead of it."""
+        centre = t if last is None else last[1] + (t - last[0])
+        return self.closest_time(p, centre, window_s)
+
     def closest_time(self, p: np.ndarray, t: float, window_s: float) -> float:
         """The plan's time whose position is closest to ``p``, searched within ``window_s`` of ``t`` (a plan that
         loops passes near itself again only a turn later), on the plan's chords and on the final line beyond its

@@ -83,9 +83,10 @@ def clip_to_limits(n_h: float, n_v: float, limits: ControlLimits) -> tuple[float
 
 
 def plan_time(reference: Reference, state: np.ndarray, t: float, gains: GuidanceGains,
-              progress_s: float | None = None) -> float:
-    """The time of ``reference``'s point closest to the aircraft at ``state``: searched within a turn time of
-    ``progress_s`` (where it was on the plan a step before; None: of the clock ``t``, for a plan just received).
+              last: tuple[float, float] | None = None) -> float:
+    """The time of ``reference``'s point closest to the aircraft at ``state``: searched within a turn time of where it
+    was on the plan a step before, moved on by the step (``last``: that step's clock and plan time; None: of the clock
+    ``t``, for a plan just received; :meth:`~mal_planner.trajectory.Reference.follow`).
 
     Searched around the clock, an aircraft more than a turn time late lost its place: the reference ran ahead of it
     down the glide path and, past the plan's end, collapsed onto the threshold, below which the aircraft levelled
@@ -94,7 +95,7 @@ def plan_time(reference: Reference, state: np.ndarray, t: float, gains: Guidance
     as an FMS flies its vertical path by position, and the service replans it for the lateness."""
     if not math.isfinite(gains.search_s):
         return t
-    return reference.closest_time(state[:3], t if progress_s is None else progress_s, gains.search_s)
+    return reference.follow(state[:3], t, gains.search_s, last)
 
 
 def guidance_controls(model: DynamicsModel, limits: ControlLimits, gains: GuidanceGains, state: np.ndarray,

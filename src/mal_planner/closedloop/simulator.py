@@ -69,8 +69,9 @@ class SimAircraft:
     """Every plan flown, in order."""
     plan_arrivals: list[float] = field(default_factory=list)
     """When each began to be flown."""
-    progress_s: float | None = None
-    """The time of the plan's point the aircraft was at a step before (path following; None: none yet)."""
+    progress: tuple[float, float] | None = None
+    """The clock and the plan's time where the aircraft was on its plan a step before (path following; None: none
+    yet)."""
 
     @property
     def flying(self) -> bool:
@@ -151,14 +152,16 @@ class FlightSimulator:
             if not ac.flying:
                 continue
             while ac.pending and ac.pending[0][0] <= self.t:
-                ac.reference, ac.progress_s = ac.pending.pop(0)[1], None
+                ac.reference, ac.progress = ac.pending.pop(0)[1], None
                 if ac.reference is not None:
                     ac.plans.append(ac.reference)
                     ac.plan_arrivals.append(self.t)
+            s = None
             if ac.reference is not None:
-                ac.progress_s = plan_time(ac.reference, ac.state, self.t, self.gains, ac.progress_s)
+                s = plan_time(ac.reference, ac.state, self.t, self.gains, ac.progress)
+                ac.progress = (self.t, s)
             command = guidance_controls(ac.model, ac.limits, self.gains, ac.state, wind[k], ac.reference,
-                                        self.t, self.options.load_factor_lag_s, ac.progress_s)
+                                        self.t, self.options.load_factor_lag_s, s)
             ac.loads = command + (ac.loads - command) * decay
             before = ac.state
             ac.state = ac.model.with_wind(wind[k, 0], wind[k, 1]).rk4_step(before, ac.loads, dt)

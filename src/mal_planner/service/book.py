@@ -109,6 +109,28 @@ class PlanBook:
     established_s: float = 0.0
     """An aircraft this close to the end of the plan it flies keeps it (:func:`~mal_planner.service.rules.established`;
     0: none does)."""
+    progress: dict[str, tuple[Reference, tuple[float, float]]] = field(default_factory=dict)
+    """Per aircraft, where it was on its instruction at the last scan: (instruction, (track time, the instruction's
+    time there))."""
+
+    def plan_times(self, tracks: Mapping[str, Track]) -> dict[str, float]:
+        """Where each tracked aircraft is on its instruction: the time of the instruction's point closest to it,
+        searched within :attr:`search_s` of where it was at the last scan moved on by the time since (of the track's
+        time for a new instruction): :meth:`~mal_planner.trajectory.Reference.follow`, as the guidance follows a plan.
+        Searched around the clock, an aircraft more than a turn time late was predicted from a point ahead of it."""
+        out = {}
+        for gone in set(self.progress) - set(tracks):
+            del self.progress[gone]
+        for cs, tr in tracks.items():
+            ref = self.instruction(cs)
+            if ref is None:
+                self.progress.pop(cs, None)
+                continue
+            last = self.progress.get(cs)
+            out[cs] = ref.follow(tr.state[:3], tr.stamp, self.search_s, None if last is None or last[0] is not ref
+                                 else last[1])
+            self.progress[cs] = (ref, (tr.stamp, out[cs]))
+        return out
 
     def instruction(self, callsign: str) -> Reference | None:
         """What an aircraft flies now: its plan, else its fallback, else nothing."""

@@ -2,7 +2,9 @@
 
 Each aircraft is predicted along the instruction it flies (a plan, a hold or a vector), from where the radar sees
 it: from the instruction's point closest to it, as the guidance follows it (:mod:`mal_planner.closedloop.guidance`;
-an along-track error stays), with the cross-track offset taken out at the guidance's position time constant.
+an along-track error stays: searched around where the aircraft was on it at the last scan,
+:meth:`~mal_planner.service.book.PlanBook.plan_times`), with the cross-track offset taken out at the guidance's
+position time constant.
 An aircraft without an instruction flies straight on. Separation is measured in minima: the distance over the
 separation (a protected sphere) or, with a vertical minimum, the larger of the horizontal and vertical distances
 over their minima (a cylinder): below 1 is a loss of separation.
@@ -65,24 +67,27 @@ class Conflict:
     ratio: float
 
 
-def predict(track: Track, instruction: Reference | None, times: np.ndarray, *, search_s: float, settle_s: float
-            ) -> np.ndarray:
-    """(len(times), 3) positions of ``track``'s aircraft flying ``instruction`` (None: straight on)."""
+def predict(track: Track, instruction: Reference | None, times: np.ndarray, *, search_s: float, settle_s: float,
+            s0: float | None = None) -> np.ndarray:
+    """(len(times), 3) positions of ``track``'s aircraft flying ``instruction`` (None: straight on); ``s0``: the
+    instruction's time the aircraft is at (None: its closest point within ``search_s`` of the track's time)."""
     tau = np.asarray(times, float) - track.stamp
     if instruction is None:
         return np.array([track.at(track.stamp + dt)[:3] for dt in tau])
-    s0 = instruction.closest_time(track.state[:3], track.stamp, search_s)
+    if s0 is None:
+        s0 = instruction.closest_time(track.state[:3], track.stamp, search_s)
     offset = track.state[:3] - instruction.position(s0)
     fade = np.exp(-np.maximum(tau, 0.0) / settle_s)[:, None]
     return instruction.positions(s0 + tau) + fade * offset
 
 
 def picture(tracks: Mapping[str, Track], instructions: Mapping[str, Reference], times: np.ndarray, *,
-            search_s: float, settle_s: float) -> Picture:
-    """Every tracked aircraft predicted along its instruction at ``times``."""
+            search_s: float, settle_s: float, plan_times: Mapping[str, float] | None = None) -> Picture:
+    """Every tracked aircraft predicted along its instruction at ``times`` (``plan_times``: where each is on it)."""
+    at = plan_times or {}
     return Picture(np.asarray(times, float),
-                   {cs: predict(tr, instructions.get(cs), times, search_s=search_s, settle_s=settle_s)
-                    for cs, tr in tracks.items()})
+                   {cs: predict(tr, instructions.get(cs), times, search_s=search_s, settle_s=settle_s,
+                                s0=at.get(cs)) for cs, tr in tracks.items()})
 
 
 def closest_to_others(path: np.ndarray, pic: Picture, minima: Minima, exclude: str) -> tuple[float, str]:

@@ -73,7 +73,7 @@ class Guard:
     def _picture(self, tracks: Mapping[str, Track], book: PlanBook, now: float) -> Picture:
         scales = self.rules.scales
         return picture(tracks, book.instructions(), self.rules.look_ahead(now), search_s=scales.time_s,
-                       settle_s=scales.seconds(POSITION_TIME_PER_TURN_TIME))
+                       settle_s=scales.seconds(POSITION_TIME_PER_TURN_TIME), plan_times=book.plan_times(tracks))
 
     def instruct(self, tracks: Mapping[str, Track], book: PlanBook, now: float, deliver_at: float | None,
                  coming: frozenset[str] | set[str] = frozenset()) -> list[Instructed]:
