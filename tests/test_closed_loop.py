@@ -241,6 +241,30 @@ def test_an_aircraft_two_turn_times_late_flies_its_plan_by_position_onto_the_thr
     assert heights.min() > 0.0
 
 
+def test_an_aircraft_far_below_its_reference_climbs_no_steeper_than_plans_may() -> None:
+    # A reference 0.68 nm above the aircraft (a plan handed out far from where the aircraft is): asked for the whole
+    # climb at once, the guidance stood a terminal-area aircraft (n_v >= 0.7, which cannot push over from beyond
+    # 46 deg) on its tail; it looped to 140 deg and left the airspace at 2 nm. Within the planner's 30-deg bound it
+    # levels off, inside the airspace.
+    from mal_planner.landing.problem import GAMMA_BOUND
+
+    data = yaml.safe_load((ROOT / "scenarios" / "tma_3.yaml").read_text(encoding="utf-8"))
+    data["aircraft"] = [dict(callsign="T01", position=[0.0, 8.0, 0.22], flight_path_angle_deg=0.0, heading_deg=-90.0,
+                             speed=0.05)]
+    data.pop("obstacles", None)
+    scenario = parse_scenario(data, "far below")
+    t = np.linspace(0.0, 120.0, 600)
+    states = np.column_stack([0.0 * t, 8.0 - 0.05 * t, np.full_like(t, 0.9), 0.0 * t, np.full_like(t, -math.pi / 2)])
+    sim = FlightSimulator(scenario, SimOptions(seed=1))
+    sim.set_plan("T01", Reference(t, states))
+    sim.advance(100.0)
+    ac = sim.aircraft[0]
+    flown = np.array(ac.states)
+    assert ac.status == "flying", ac.end_note
+    assert flown[:, 3].max() <= GAMMA_BOUND + math.radians(1.0)
+    assert flown[:, 2].max() < scenario.airspace[2, 1]
+
+
 def test_the_track_filter_smooths_radar_noise_against_the_plan_and_keeps_its_estimate_across_replans() -> None:
     from mal_planner.service.track_filter import DeviationFilter, noise_factor
 

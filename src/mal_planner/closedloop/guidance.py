@@ -13,7 +13,9 @@ where the aircraft should be at each moment. The law, per aircraft and control s
    height errors;
 3. the air velocity that gives it in the wind the aircraft measures (air data and satellite navigation do
    that on board): its direction sets the wanted heading and flight-path angle (the airspeed is constant, so
-   only the direction can be chosen; the vertical component is met first);
+   only the direction can be chosen; the vertical component is met first, within the planner's own flight-path
+   angle bound: an aircraft far below its reference was otherwise sent straight up, past the angle its load
+   factors can still level off from, and looped through the ceiling);
 4. heading and flight-path-angle rates: the reference's (feedforward) plus the wanted angle errors over
    ``T_a``, converted to load factors by the model's equations and clipped to the aircraft's load-factor
    and bank limits.
@@ -37,6 +39,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from mal_planner.dynamics import ControlLimits, DynamicsModel
+from mal_planner.landing.problem import GAMMA_BOUND
 from mal_planner.service.conflicts import POSITION_TIME_PER_TURN_TIME
 from mal_planner.trajectory import Reference
 
@@ -121,7 +124,7 @@ def guidance_controls(model: DynamicsModel, limits: ControlLimits, gains: Guidan
         r = reference.sample(s)
         wanted = r[5:8] + (r[:3] - state[:3]) / gains.position_s
         air = wanted - np.array([wind[0], wind[1], 0.0])
-        gamma_d = math.asin(min(max(air[2] / v, -1.0), 1.0))
+        gamma_d = min(max(math.asin(min(max(air[2] / v, -1.0), 1.0)), -GAMMA_BOUND), GAMMA_BOUND)
         heading_d = math.atan2(air[1], air[0])
         ahead = reference.sample(s + lead_s) if lead_s > 0 else r
         gamma_rate = ahead[8] + (gamma_d - gamma) / gains.attitude_s
