@@ -17,7 +17,7 @@ from mal_planner.closedloop.simulator import FlightSimulator
 from mal_planner.options import PlanOptions
 from mal_planner.scales import Scales
 from mal_planner.scenario import load_scenario
-from mal_planner.service.book import Handout, Instructed, PlanBook, Stale
+from mal_planner.service.book import Handout, Instructed, PlanBook, Stale, Withdrawn
 from mal_planner.service.conflicts import Minima, Picture, predict
 from mal_planner.service.core import PlanningService
 from mal_planner.service.fallback import FallbackRules, choose_hold, fits_airspace
@@ -272,6 +272,33 @@ def test_an_aircraft_established_on_final_keeps_the_plan_it_flies(first_plan: Cl
     assert isinstance(again, Handout) and again.established == (first,)
     assert first not in again.trajectories and service.book.flying[first] is before[first]
     assert all(service.book.flying[cs] is not before[cs] for cs in again.trajectories)
+
+
+def test_an_aircraft_left_out_of_a_partial_plan_keeps_its_plan_where_it_is_clear_of_the_new_ones(
+        first_plan: ClosedLoop) -> None:
+    """A partial plan (the planner ran out of time) plans A1 only. A2 and A3 keep the plans they fly where those stay
+    clear of the new one; when A1's new plan lands 5 s later, 10 s before A2 (15 s spacing), A2 holds and A3, 25 s
+    after it and 1.7 minima away at the closest, keeps its plan. Withdrawing every plan left out sent twelve of twenty
+    aircraft to holds (traffic-0048)."""
+    loop = first_plan
+    result = loop.service.book.current.result
+    truth = {a.callsign: Track(a.callsign, 0.0, a.state0.copy(), a.speed) for a in loop.scenario.aircraft}
+
+    def partial(shift_s: float):
+        trajectories = {tr.callsign: tr for tr in result.landing.trajectories}
+        a1 = replace(trajectories["A1"], t=trajectories["A1"].t + shift_s)
+        return replace(result, landing=replace(result.landing, trajectories=[a1]), unplanned=("A2", "A3"))
+
+    for shift, withdrawn in ((0.0, ()), (5.0, ("A2",))):
+        service = PlanningService(loop.base, loop.rules, loop.service.options)
+        service.finish(service.request("initial plan", 0.0, tracks=truth, lead=False), result, None, 0.0, 2.0)
+        before = dict(service.book.flying)
+        events = service.finish(service.request("test", 0.0, tracks=truth, lead=False), partial(shift), None, 0.0,
+                                1.0)
+        gone = [e for e in events if isinstance(e, Withdrawn)]
+        assert tuple(cs for e in gone for cs in e.callsigns) == withdrawn
+        for cs in {"A2", "A3"} - set(withdrawn):
+            assert service.book.flying[cs] is before[cs]
 
 
 def test_a_plan_that_would_turn_an_aircraft_out_of_the_airspace_is_stale(thesis) -> None:

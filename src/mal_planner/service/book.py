@@ -20,6 +20,8 @@ from typing import TYPE_CHECKING
 import numpy as np
 
 from mal_planner.scales import Scales, level_turn_radius
+from mal_planner.scenario import Scenario
+from mal_planner.sequencing.schedule import landing_spacing
 from mal_planner.service.conflicts import Minima
 from mal_planner.service.fallback import Fallback
 from mal_planner.service.reanchor import fade_time, reanchored, turn_stray, unsafe_offsets
@@ -201,15 +203,42 @@ class PlanBook:
                                     fade_time(scales, now, refs[cs].end)) if cs in offsets else tr
                      for cs, tr in trajectories.items()}
             events.append(self._hand_out(result, request, now, moved, lost, settled))
-            unplanned = [cs for cs in result.unplanned if cs in self.flying]
-            if unplanned:  # their plans were made with the others' old ones: they hold instead (the guard)
-                events.append(self.withdraw(unplanned, "not in the partial plan handed out"))
+            unplanned = self._clashing([cs for cs in result.unplanned if cs in self.flying], set(moved), now,
+                                       result.scenario)
+            if unplanned:  # their plans are not clear of the new ones: they hold instead (the guard)
+                events.append(self.withdraw(unplanned, "not in the partial plan handed out, and its plan is not "
+                                                       "clear of it"))
         expiry = self.rules.kept_plan_expiry_s
         if self.kept_since is not None and expiry > 0 and now - self.kept_since >= expiry and self.flying:
             self.kept_since = None
             events.append(self.withdraw(sorted(self.flying), f"kept plan expired: replans have failed for {expiry:g} s"
                                                              " (kept_plan_expiry_s)"))
         return events
+
+    def _clashing(self, unplanned: list[str], new: set[str], now: float, scenario: Scenario) -> list[str]:
+        """The aircraft of ``unplanned`` (left out of a partial plan, each still flying its old plan) whose plans are
+        not clear of the instructions flown now: closer to one than the minima plus twice the deviation threshold (the
+        margin of flown plans), or landing closer to one of the ``new`` plans than their landing spacing. The others
+        keep their plans. Withdrawing them all sent twelve of twenty aircraft to holds when a replan planned six
+        (traffic-0048), and the holds' replans ran out of time in turn."""
+        base = Minima.of(scenario)
+        grow = 2.0 * max(self.rules.deviation_nm, 0.0)
+        minima = Minima(base.horizontal_nm + grow, None if base.vertical_nm is None else base.vertical_nm + grow)
+        step = Scales.of(scenario).seconds(0.25)
+        out: list[str] = []
+        for cs in unplanned:
+            mine = self.flying[cs]
+            times = np.arange(now, mine.end, step)
+            for other, ref in self.instructions().items():
+                if other == cs or other in out:
+                    continue
+                live = times <= ref.end
+                close = live.any() and float(minima.ratio(mine.positions(times[live]),
+                                                          ref.positions(times[live])).min()) < 1.0
+                if close or (other in new and abs(ref.end - mine.end) < _spacing(scenario, cs, other, mine, ref)):
+                    out.append(cs)
+                    break
+        return out
 
     @staticmethod
     def _planned(result: PlanResult, request: PlanRequest, tracked: set[str]
@@ -288,3 +317,12 @@ def _speed_then(ref: Reference, speed: float, now: float, then: float) -> float:
     instruction's airspeed changes (an airspeed-model plan slows down), the same where it carries none."""
     planned_now, planned_then = ref.airspeed(now), ref.airspeed(then)
     return speed if planned_now is None or planned_then is None else speed + planned_then - planned_now
+
+
+def _spacing(scenario: Scenario, a: str, b: str, ref_a: Reference, ref_b: Reference) -> float:
+    """The landing spacing of ``a`` and ``b`` in the order their plans land (the scenario's, where one is unknown)."""
+    (lead, _), (follow, _) = sorted(((a, ref_a.end), (b, ref_b.end)), key=lambda p: p[1])
+    known = {ac.callsign: ac for ac in scenario.aircraft}
+    if lead not in known or follow not in known:
+        return scenario.landing_spacing_s
+    return landing_spacing(scenario, known[lead], known[follow])
