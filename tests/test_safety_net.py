@@ -301,26 +301,6 @@ def test_an_aircraft_left_out_of_a_partial_plan_keeps_its_plan_where_it_is_clear
             assert service.book.flying[cs] is before[cs]
 
 
-def test_a_re_anchored_plan_below_the_nets_alert_level_is_stale(thesis) -> None:
-    """Two aircraft 1.03 minima apart on their re-anchored plans: above the minimum, but the net alerts below 1.05
-    (the minimum plus one deviation threshold) and would take them off the plan at once (20 aircraft, traffic-0031: a
-    plan made before the net vectored two aircraft took them off their vectors, and they lost separation). Stale;
-    1.07 minima apart, handed out."""
-    from mal_planner.scales import Scales
-    from mal_planner.service.conflicts import alert_level
-    from mal_planner.service.reanchor import unsafe_offsets
-
-    minima, deviation = Minima.of(thesis), 0.05 * thesis.separation_nm / 2.0 / 0.5
-    assert alert_level(minima, deviation) == pytest.approx(1.05)
-    for apart, stale in ((1.03, True), (1.07, False)):
-        refs = {"A": _line(0.0, (-2.0, 3.0, 0.15), 0.0, 0.04, 100.0),
-                "B": _line(0.0, (-2.0, 3.0 + apart * thesis.separation_nm, 0.15), 0.0, 0.04, 100.0)}
-        why = unsafe_offsets(refs, {}, 0.0, Scales.of(thesis), minima, thesis.airspace, deviation)
-        assert (why is not None) == stale, why
-        if stale:
-            assert "the net alerts below 1.05" in why
-
-
 def test_a_plan_that_would_turn_an_aircraft_out_of_the_airspace_is_stale(thesis) -> None:
     """Re-anchoring moves positions, not headings. A plan east reaching an aircraft that flies west (half way round a
     hold) 0.4 nm from the western edge turns it round: it strays about two turn radii (0.6 nm) and leaves; in the

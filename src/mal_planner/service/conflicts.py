@@ -27,17 +27,6 @@ POSITION_TIME_PER_TURN_TIME = 0.5
 a cross-track offset decays with it in the prediction."""
 
 
-ALERT_MARGIN_SHARE = 0.5
-"""The safety net alerts below 1 + this share of the margin flown plans keep (twice the deviation threshold), in
-minima: the minimum plus one aircraft's tracking deviation (a terminal area 3.15 nm of 3). A plan re-anchored to
-where its aircraft are is handed out only above it (:func:`mal_planner.service.reanchor.unsafe_offsets`)."""
-
-
-def alert_level(minima: Minima, deviation_nm: float) -> float:
-    """Where the safety net alerts, in minima (:data:`ALERT_MARGIN_SHARE`)."""
-    return 1.0 + ALERT_MARGIN_SHARE * 2.0 * deviation_nm / minima.horizontal_nm
-
-
 @dataclass(frozen=True)
 class Minima:
     """The protected zone: ``horizontal_nm`` (a sphere's radius when ``vertical_nm`` is None)."""

@@ -23,7 +23,6 @@ from mal_planner.service.conflicts import (
     POSITION_TIME_PER_TURN_TIME,
     Conflict,
     Picture,
-    alert_level,
     closest_to_others,
     conflicts,
     picture,
@@ -35,6 +34,9 @@ from mal_planner.service.tracks import Track
 
 log = logging.getLogger("mal_planner.service")
 
+ALERT_MARGIN_SHARE = 0.5
+"""The net alerts below 1 + this share of the fallback margin, in minima: the minimum plus one aircraft's tracking
+deviation (a terminal area 3.15 nm of 3)."""
 ACT_TURN_TIMES = 4.0
 """The net's time to act: a conflict predicted this soon is resolved now (a terminal area 55 s, the thesis 30 s: a
 turn of 30 deg then still opens the separation and its margin); a later one waits only for a plan due this long
@@ -62,10 +64,6 @@ class Guard:
     def of(cls, scenario: Scenario, deviation_nm: float) -> Guard:
         """The guard of ``scenario`` (its no-fly zones and the wind the service knows)."""
         return cls(scenario, FallbackRules.of(scenario, deviation_nm))
-
-    @property
-    def _alert_level(self) -> float:
-        return alert_level(self.rules.minima, self.rules.edge_nm)
 
     def update(self, scenario: Scenario) -> None:
         """New no-fly zones or a new wind (``scenario``'s): the next holds and vectors are drawn in them."""
@@ -107,7 +105,7 @@ class Guard:
         others = Picture(pic.times, {k: v for k, v in pic.paths.items() if k != fb.callsign})
         chosen = self._clearest_vector(fb, track, pic, others, now)
         if current is None or chosen is None or fb.callsign not in pic.paths or \
-                chosen.clearance >= self._alert_level:
+                chosen.clearance >= 1.0 + ALERT_MARGIN_SHARE * self.rules.margin:
             return chosen
         kept, _ = closest_to_others(pic.paths[fb.callsign], others, self.rules.minima, fb.callsign)
         return current if kept >= chosen.clearance - KEEP_VECTOR_SHARE * self.rules.margin else chosen
@@ -123,7 +121,7 @@ class Guard:
                 continue
             clearance, _ = closest_to_others(ref.positions(pic.times), others, self.rules.minima, fb.callsign)
             cand = Fallback(cand.callsign, cand.kind, ref, now, cand.reason, clearance)
-            if clearance >= self._alert_level:
+            if clearance >= 1.0 + ALERT_MARGIN_SHARE * self.rules.margin:
                 return cand
             if best is None or clearance > best[0]:
                 best = (clearance, cand)
@@ -145,12 +143,12 @@ class Guard:
 
     def _net(self, tracks: Mapping[str, Track], book: PlanBook, pic: Picture, now: float,
              deliver_at: float | None) -> list[Fallback]:
-        alerts = conflicts(pic, self.rules.minima, self._alert_level)
+        alerts = conflicts(pic, self.rules.minima, 1.0 + ALERT_MARGIN_SHARE * self.rules.margin)
         pairs = {(c.a, c.b) for c in alerts}
         for c in alerts:
             if (c.a, c.b) not in self._active:
                 log.info("t=%.1f s: alert %s-%s: %.2f minima predicted at t=%.1f s (below %.2f from t=%.1f s)", now,
-                         c.a, c.b, c.ratio, c.t_closest, self._alert_level, c.t)
+                         c.a, c.b, c.ratio, c.t_closest, 1.0 + ALERT_MARGIN_SHARE * self.rules.margin, c.t)
         self.counts["alerts"] += len(pairs - self._active)
         self._active = pairs
         if not alerts:

@@ -7,10 +7,7 @@ plan is moved by its offset at the hand-out, the offset fading out linearly over
 aircraft starts on its plan and joins the planned path by the end of the fade (the guidance does the same with
 any offset, and so keeps the planned times). A plan is stale only when that is unsafe: an offset of more than half
 the separation or the deviation threshold (it was made for another picture), a re-anchored path closer than a
-path accuracy to the airspace's edge (unless the aircraft is already), or two closer during the fade than the
-safety net's alert level (the minimum plus one deviation threshold: 20 aircraft, traffic-0031, a plan made before
-the net vectored T07 and T11 took them off their vectors; the net alerted again 6 s before they lost separation,
-2.80 nm of 3).
+path accuracy to the airspace's edge (unless the aircraft is already), or two closer than the minimum during the fade.
 
 Re-anchoring moves positions, not headings: an aircraft whose ground track at the hand-out is far from its plan's
 turns onto it and strays sideways by about R (1 - cos d), R its turn radius and d the angle (2R turning round; 20
@@ -28,7 +25,7 @@ from dataclasses import replace
 import numpy as np
 
 from mal_planner.scales import Scales
-from mal_planner.service.conflicts import Minima, alert_level
+from mal_planner.service.conflicts import Minima
 from mal_planner.trajectory import Reference, Trajectory
 
 REANCHOR_TURN_TIMES = 4.0
@@ -97,7 +94,6 @@ def unsafe_offsets(refs: Mapping[str, Reference], offsets: Mapping[str, np.ndarr
         stray = (strays or {}).get(cs, 0.0)
         if stray > deviation_nm and np.any((outside(moved[cs][:, :2]) + stray > 0.0) & live[cs]):
             return f"{cs} would stray {stray:.2f} nm out of the airspace turning onto its plan"
-    level = alert_level(minima, deviation_nm)  # below it the net would take them off the plan at once
     fixed = {cs: ref.positions(times) for cs, ref in (others or {}).items() if cs not in moved}
     live |= {cs: times <= (others or {})[cs].end for cs in fixed}
     pairs = [*itertools.combinations(sorted(moved), 2), *itertools.product(sorted(moved), sorted(fixed))]
@@ -107,7 +103,6 @@ def unsafe_offsets(refs: Mapping[str, Reference], offsets: Mapping[str, np.ndarr
         if not both.any():
             continue
         r = float(minima.ratio(paths[a][both], paths[b][both]).min())
-        if r < level:
-            return f"{a} and {b} {r:.2f} minima apart on the plan moved to where they are (the net alerts below " \
-                   f"{level:.2f})"
+        if r < 1.0:
+            return f"{a} and {b} {r:.2f} minima apart on the plan moved to where they are"
     return None
