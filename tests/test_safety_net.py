@@ -331,6 +331,27 @@ def test_a_plan_that_would_turn_an_aircraft_out_of_the_airspace_is_stale(thesis)
     assert why(0.0, math.pi) is None  # turning round in the middle of the airspace
 
 
+def test_two_plans_that_turn_aircraft_round_must_keep_the_minimum_plus_their_strays(thesis) -> None:
+    """Two plans east 1.1 minima apart: handed out to aircraft flying east (or 15 deg off), stale for one flying
+    west (a hold, or a vector of the safety net the plan was made before), which strays two turn radii towards the
+    other turning round (20 aircraft, traffic-0031: the moved paths kept 3 nm, the flown tracks 2.80)."""
+    from mal_planner.scales import Scales, level_turn_radius
+    from mal_planner.service.reanchor import turn_stray, unsafe_offsets
+
+    scales, minima, radius = Scales.of(thesis), Minima.of(thesis), level_turn_radius(thesis.aircraft[0])
+    apart = 1.1 * thesis.separation_nm
+    plans = {"A1": _line(0.0, (0.0, 3.0, 0.15), 0.0, 0.04, 100.0),
+             "A2": _line(0.0, (0.0, 3.0 + apart, 0.15), 0.0, 0.04, 100.0)}
+
+    def why(flying_heading: float) -> str | None:
+        stray = turn_stray(plans["A1"], _line(0.0, (0.0, 3.0, 0.15), flying_heading, 0.04, 100.0), 0.0, radius)
+        return unsafe_offsets(plans, {"A1": np.zeros(3), "A2": np.zeros(3)}, 0.0, scales, minima, thesis.airspace,
+                              0.05, strays={"A1": stray, "A2": 0.0})
+
+    assert why(0.0) is None and why(math.radians(15.0)) is None
+    assert "A1 and A2 1.10 minima apart" in why(math.pi) and "turning onto it they stray" in why(math.pi)
+
+
 def test_with_a_planner_that_fails_every_other_replan_the_thesis_stays_safe(thesis) -> None:
     """The thesis in an unknown wind (its plans drift and are replanned), every other replan failing on purpose and
     the others 10 s late (and no later, so that the run does not depend on the machine's speed): no loss of

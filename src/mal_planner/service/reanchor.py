@@ -13,7 +13,10 @@ Re-anchoring moves positions, not headings: an aircraft whose ground track at th
 turns onto it and strays sideways by about R (1 - cos d), R its turn radius and d the angle (2R turning round; 20
 aircraft, traffic-0002: a plan reached T20 half way round its hold 1.5 nm from the airspace's edge, and it left the
 airspace by 0.46 nm turning onto it). Where that stray is more than the deviation threshold (which the margins of
-flown plans cover), the re-anchored path must keep it from the airspace's horizontal edges during the fade.
+flown plans cover), the re-anchored path must keep it from the airspace's horizontal edges during the fade, and two
+re-anchored paths (or one and what another aircraft flies) must keep the horizontal minimum plus the strays apart
+(20 aircraft, traffic-0031: a plan made before the safety net vectored T07 and T11 turned them back onto it, and they
+lost separation, 2.80 nm of 3, where the moved paths kept 3).
 """
 
 from __future__ import annotations
@@ -91,8 +94,8 @@ def unsafe_offsets(refs: Mapping[str, Reference], offsets: Mapping[str, np.ndarr
         bound = np.maximum(np.maximum(outside(planned), out[0]), inside)
         if np.any((out > bound + 1e-12)[1:] & live[cs][1:]):
             return f"{cs} would leave the airspace on the plan moved to where it is"
-        stray = (strays or {}).get(cs, 0.0)
-        if stray > deviation_nm and np.any((outside(moved[cs][:, :2]) + stray > 0.0) & live[cs]):
+        stray = _wide(strays, cs, deviation_nm)
+        if stray > 0.0 and np.any((outside(moved[cs][:, :2]) + stray > 0.0) & live[cs]):
             return f"{cs} would stray {stray:.2f} nm out of the airspace turning onto its plan"
     fixed = {cs: ref.positions(times) for cs, ref in (others or {}).items() if cs not in moved}
     live |= {cs: times <= (others or {})[cs].end for cs in fixed}
@@ -102,7 +105,17 @@ def unsafe_offsets(refs: Mapping[str, Reference], offsets: Mapping[str, np.ndarr
         both = live[a] & live[b]
         if not both.any():
             continue
-        r = float(minima.ratio(paths[a][both], paths[b][both]).min())
-        if r < 1.0:
-            return f"{a} and {b} {r:.2f} minima apart on the plan moved to where they are"
+        grow = _wide(strays, a, deviation_nm) + _wide(strays, b, deviation_nm)
+        wider = Minima(minima.horizontal_nm + grow, minima.vertical_nm)
+        if float(wider.ratio(paths[a][both], paths[b][both]).min()) < 1.0:
+            r = float(minima.ratio(paths[a][both], paths[b][both]).min())
+            turning = f" ({grow:.2f} nm more: turning onto it they stray)" if grow > 0.0 else ""
+            return f"{a} and {b} {r:.2f} minima apart on the plan moved to where they are{turning}"
     return None
+
+
+def _wide(strays: Mapping[str, float] | None, callsign: str, deviation_nm: float) -> float:
+    """How much wider (nm) ``callsign``'s protected zone is while it turns onto its plan: its stray where that is
+    more than the deviation threshold (the margins of flown plans cover less), else 0."""
+    stray = (strays or {}).get(callsign, 0.0)
+    return stray if stray > deviation_nm else 0.0
