@@ -352,6 +352,25 @@ def test_two_plans_that_turn_aircraft_round_must_keep_the_minimum_plus_their_str
     assert "A1 and A2 1.10 minima apart" in why(math.pi) and "turning onto it they stray" in why(math.pi)
 
 
+def test_a_plan_moved_into_a_no_fly_zone_is_stale(thesis) -> None:
+    """A plan east passes 0.1 nm south of a no-fly zone; moved 0.12 nm north to where its aircraft is, it would cut
+    the zone's corner during the fade: stale, naming the zone (20 aircraft, traffic-0003, failing planner: a plan
+    re-anchored to a holding aircraft took it through a wall). Moved south, or not at all, it is handed out."""
+    from mal_planner.obstacles import Superquadric
+    from mal_planner.scales import Scales
+    from mal_planner.service.reanchor import unsafe_offsets
+
+    zone = Superquadric("box", (0.3, 3.3, 0.15), (0.2, 0.2, 0.2), 50)
+    plan = {"A1": _line(0.0, (0.0, 3.0, 0.15), 0.0, 0.04, 100.0)}
+
+    def why(dy: float) -> str | None:
+        return unsafe_offsets(plan, {"A1": np.array([0.0, dy, 0.0])}, 0.0, Scales.of(thesis), Minima.of(thesis),
+                              thesis.airspace, 0.05, obstacles=[zone])
+
+    assert why(0.0) is None and why(-0.12) is None
+    assert why(0.12) == "A1 would enter the no-fly zone 'box' on the plan moved to where it is"
+
+
 def test_with_a_planner_that_fails_every_other_replan_the_thesis_stays_safe(thesis) -> None:
     """The thesis in an unknown wind (its plans drift and are replanned), every other replan failing on purpose and
     the others 10 s late (and no later, so that the run does not depend on the machine's speed): no loss of

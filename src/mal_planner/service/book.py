@@ -193,7 +193,8 @@ class PlanBook:
             strays = {cs: turn_stray(ref, self.instruction(cs), now, level_turn_radius(
                 result.scenario.aircraft_by_callsign(cs))) for cs, ref in refs.items() if cs in offsets}
             why = None if self.rules.deviation_nm <= 0 else unsafe_offsets(  # 0: the tracks do not follow plans
-                refs, offsets, now, scales, minima, result.scenario.airspace, self.rules.deviation_nm, others, strays)
+                refs, offsets, now, scales, minima, result.scenario.airspace, self.rules.deviation_nm, others, strays,
+                result.scenario.obstacles)
             if why is not None:  # the aircraft keep what they fly; the policy asks again at once
                 self.last_arrival = -math.inf
                 events.append(Stale(request, f"stale: {why}, {now - request.plan_start:.1f} s after the tracks it "

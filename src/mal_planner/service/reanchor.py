@@ -7,7 +7,8 @@ plan is moved by its offset at the hand-out, the offset fading out linearly over
 aircraft starts on its plan and joins the planned path by the end of the fade (the guidance does the same with
 any offset, and so keeps the planned times). A plan is stale only when that is unsafe: an offset of more than half
 the separation or the deviation threshold (it was made for another picture), a re-anchored path closer than a
-path accuracy to the airspace's edge (unless the aircraft is already), or two closer than the minimum during the fade.
+path accuracy to the airspace's edge or to a no-fly zone (unless the aircraft is already), or two closer than the
+minimum during the fade.
 
 Re-anchoring moves positions, not headings: an aircraft whose ground track at the hand-out is far from its plan's
 turns onto it and strays sideways by about R (1 - cos d), R its turn radius and d the angle (2R turning round; 20
@@ -22,11 +23,12 @@ lost separation, 2.80 nm of 3, where the moved paths kept 3).
 from __future__ import annotations
 
 import itertools
-from collections.abc import Mapping
+from collections.abc import Mapping, Sequence
 from dataclasses import replace
 
 import numpy as np
 
+from mal_planner.obstacles import Superquadric
 from mal_planner.scales import Scales
 from mal_planner.service.conflicts import Minima
 from mal_planner.trajectory import Reference, Trajectory
@@ -65,13 +67,13 @@ def turn_stray(plan: Reference, flying: Reference | None, now: float, radius_nm:
 
 def unsafe_offsets(refs: Mapping[str, Reference], offsets: Mapping[str, np.ndarray], now: float, scales: Scales,
                    minima: Minima, airspace: np.ndarray, deviation_nm: float = 0.0,
-                   others: Mapping[str, Reference] | None = None, strays: Mapping[str, float] | None = None
-                   ) -> str | None:
+                   others: Mapping[str, Reference] | None = None, strays: Mapping[str, float] | None = None,
+                   obstacles: Sequence[Superquadric] = ()) -> str | None:
     """Why re-anchoring ``refs`` by ``offsets`` at ``now`` is unsafe (one line), or None (see the module
     docstring); ``deviation_nm``: the service's deviation threshold, the largest offset where it is larger than half
     the separation (the margins of flown plans are sized to it); ``others``: what the aircraft outside the plan fly
     (a replan of what changed), which the moved paths must keep the minimum from too; ``strays``: how far each
-    aircraft strays turning onto its plan (:func:`turn_stray`)."""
+    aircraft strays turning onto its plan (:func:`turn_stray`); ``obstacles``: the no-fly zones."""
     limit = max(MAX_OFFSET_SEPARATIONS * minima.horizontal_nm, deviation_nm)
     for cs, off in offsets.items():
         d = float(np.linalg.norm(off))
@@ -79,28 +81,63 @@ def unsafe_offsets(refs: Mapping[str, Reference], offsets: Mapping[str, np.ndarr
             return f"{cs} {d:.3f} nm from it when it starts (more than {limit:.3f} nm)"
     times = now + np.linspace(0.0, scales.seconds(REANCHOR_TURN_TIMES), 33)
     moved, live = {}, {}
-
-    def outside(path: np.ndarray) -> np.ndarray:  # (x, y) or (x, y, z) columns
-        box = airspace[: path.shape[1]]
-        return np.max(np.maximum(box[:, 0] - path, path - box[:, 1]), axis=1)
-
-    inside = -scales.accuracy_nm  # a path accuracy inside (a flown path strays about that far from its plan)
     for cs, ref in refs.items():
         w = np.clip(1.0 - (times - now) / fade_time(scales, now, ref.end), 0.0, 1.0)
         planned = ref.positions(times)
         moved[cs] = planned + w[:, None] * np.asarray(offsets.get(cs, np.zeros(3)))[None, :3]
         live[cs] = times <= ref.end  # past its end an aircraft has landed
-        out = outside(moved[cs])  # nearer the edge than a path accuracy only where the plan or the aircraft is
-        bound = np.maximum(np.maximum(outside(planned), out[0]), inside)
-        if np.any((out > bound + 1e-12)[1:] & live[cs][1:]):
-            return f"{cs} would leave the airspace on the plan moved to where it is"
         stray = _wide(strays, cs, deviation_nm)
-        if stray > 0.0 and np.any((outside(moved[cs][:, :2]) + stray > 0.0) & live[cs]):
-            return f"{cs} would stray {stray:.2f} nm out of the airspace turning onto its plan"
+        why = _leaves_airspace(cs, moved[cs], planned, live[cs], airspace, scales.accuracy_nm, stray) or \
+            _enters_no_fly_zone(cs, moved[cs], planned, live[cs], obstacles, max(scales.accuracy_nm, stray))
+        if why is not None:
+            return why
     fixed = {cs: ref.positions(times) for cs, ref in (others or {}).items() if cs not in moved}
     live |= {cs: times <= (others or {})[cs].end for cs in fixed}
+    return _too_close(moved, fixed, live, minima, strays, deviation_nm)
+
+
+def _outside(airspace: np.ndarray, path: np.ndarray) -> np.ndarray:
+    """How far each point of ``path`` ((x, y) or (x, y, z) columns) is outside ``airspace`` (negative: inside)."""
+    box = airspace[: path.shape[1]]
+    return np.max(np.maximum(box[:, 0] - path, path - box[:, 1]), axis=1)
+
+
+def _leaves_airspace(cs: str, moved: np.ndarray, planned: np.ndarray, live: np.ndarray, airspace: np.ndarray,
+                     accuracy_nm: float, stray: float) -> str | None:
+    """Nearer the edge than a path accuracy (a flown path strays about that far from its plan) only where the plan
+    or the aircraft is; and the stray turning onto the plan kept from the horizontal edges."""
+    out = _outside(airspace, moved)
+    bound = np.maximum(np.maximum(_outside(airspace, planned), out[0]), -accuracy_nm)
+    if np.any((out > bound + 1e-12)[1:] & live[1:]):
+        return f"{cs} would leave the airspace on the plan moved to where it is"
+    if stray > 0.0 and np.any((_outside(airspace, moved[:, :2]) + stray > 0.0) & live):
+        return f"{cs} would stray {stray:.2f} nm out of the airspace turning onto its plan"
+    return None
+
+
+def _enters_no_fly_zone(cs: str, moved: np.ndarray, planned: np.ndarray, live: np.ndarray,
+                        obstacles: Sequence[Superquadric], margin_nm: float) -> str | None:
+    """The moved path kept ``margin_nm`` (a path accuracy, or the stray turning onto the plan) out of every no-fly
+    zone the plan itself keeps it from; an aircraft already inside that margin must only not enter the zone (20
+    aircraft, traffic-0003 with a failing planner: a plan re-anchored to a holding aircraft took it through a wall
+    beside the wall's hole, 0.4 s after the hand-out)."""
+    starts, ends, on = moved[:-1], moved[1:], live[1:]
+    for ob in obstacles:
+        zone = ob.inflated(margin_nm)
+        if bool(zone.contains(moved[:1])[0]):
+            zone = ob
+        hits = zone.segment_hits(starts, ends) & on & ~zone.segment_hits(planned[:-1], planned[1:])
+        if np.any(hits):
+            return f"{cs} would enter the no-fly zone '{ob.name}' on the plan moved to where it is"
+    return None
+
+
+def _too_close(moved: Mapping[str, np.ndarray], fixed: Mapping[str, np.ndarray], live: Mapping[str, np.ndarray],
+               minima: Minima, strays: Mapping[str, float] | None, deviation_nm: float) -> str | None:
+    """Two moved paths, or a moved path and what another aircraft flies, closer than the minimum plus the strays
+    of the aircraft turning onto their plans."""
     pairs = [*itertools.combinations(sorted(moved), 2), *itertools.product(sorted(moved), sorted(fixed))]
-    paths = moved | fixed
+    paths = {**moved, **fixed}
     for a, b in pairs:
         both = live[a] & live[b]
         if not both.any():
