@@ -88,6 +88,29 @@ def test_an_aircraft_two_turn_times_late_is_predicted_from_where_it_is_on_its_pl
     assert np.linalg.norm(by_clock[-1] - plan.position(90.0 - late)) > 0.5 * speed * turn
 
 
+def test_a_plan_overdue_keeps_the_net_waiting_no_later_than_its_time_to_act(thesis) -> None:
+    """Two aircraft meeting head on in 30 s, less than the net's time to act (30 s here): a plan that was due 10 s
+    ago and has not come may come any time, so the net acts now (20 aircraft, failing planner, traffic-0022: the net
+    waited for a plan due before its time to act until the plan came 137 s after its tracks, stale, 3 s before the
+    conflict, and T12 and T15 lost separation, 2.94 nm of 3). With the same conflict 40 s away it still waits."""
+    speed = 0.04
+
+    def events(x0: float) -> tuple[Guard, list]:
+        a = _line(0.0, (x0, 4.5, 0.15), 0.0, speed, 200.0)
+        b = _line(0.0, (-x0 + 1.6, 4.5, 0.15), math.pi, speed, 200.0)
+        tracks = {"A": Track("A", 0.0, np.r_[a.position(0.0), 0.0, 0.0], speed),
+                  "B": Track("B", 0.0, np.r_[b.position(0.0), 0.0, math.pi], speed)}
+        book = PlanBook(ServiceRules(deviation_nm=0.05), lambda cs, ref, t: None)
+        book.flying.update({"A": a, "B": b})
+        guard = Guard.of(thesis, 0.05)
+        return guard, guard.instruct(tracks, book, 0.0, deliver_at=-10.0)
+
+    guard, given = events(-0.4)
+    assert len(given) == 1 and guard.counts["waited"] == 0 and guard.counts["uses"] == 1
+    guard, given = events(-0.8)
+    assert given == [] and guard.counts["waited"] == 1
+
+
 def test_a_predicted_conflict_brings_in_the_net_unless_a_plan_comes_in_time(thesis) -> None:
     """Two aircraft on plans that meet head on in 40 s: with a plan due a minute later the net vectors both apart
     (MVP) and the vectors are clear of each other, as with one due 20 s later (it would leave the net too little time

@@ -155,8 +155,9 @@ class Guard:
             return []
         act = self.rules.scales.seconds(ACT_TURN_TIMES)
         urgent: list[Conflict] = []
+        due = None if deliver_at is None else max(deliver_at, now)  # an overdue plan may come any time from now
         for c in alerts:
-            if deliver_at is not None and deliver_at <= c.t - act:
+            if due is not None and due <= c.t - act:
                 self.counts["waited"] += 1
             else:
                 urgent.append(c)
